@@ -31,7 +31,9 @@ class StereoCamera:
         if K.shape != (3, 3) or not np.all(np.isfinite(K)):
             raise ValueError(f"K must be a finite 3x3 matrix, got {self.K!r}")
         if K[0, 0] <= 0 or K[1, 1] <= 0 or not np.allclose(K[2], [0, 0, 1]):
-            raise ValueError(f"K must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, got {K.tolist()}")
+            raise ValueError(
+                f"K must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, got {K.tolist()}"
+            )
         if abs(K[1, 0]) > 0:
             raise ValueError(f"K[1][0] must be 0, got {K[1, 0]}")
         b = float(self.baseline)

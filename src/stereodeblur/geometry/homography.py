@@ -18,7 +18,9 @@ from .plane import plane_in_view
 from .rigid import se3_exp
 
 
-def motion_in_view(R: np.ndarray, T: np.ndarray, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def motion_in_view(
+    R: np.ndarray, T: np.ndarray, center: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Motion ``P' = R P + T`` (left coordinates) in a camera centred at ``center``."""
     c = np.asarray(center, dtype=np.float64)
     return R, T + (R - np.eye(3)) @ c

@@ -23,7 +23,9 @@ def disparity_coefficients(camera: StereoCamera, n: np.ndarray) -> np.ndarray:
     return camera.fx * camera.baseline * (np.asarray(n, dtype=np.float64) @ camera.K_inv)
 
 
-def plane_disparity(camera: StereoCamera, n: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def plane_disparity(
+    camera: StereoCamera, n: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> np.ndarray:
     """Left-view disparity of plane ``n`` at pixels ``(x, y)``."""
     a, b, c = disparity_coefficients(camera, n)
     return a * x + b * y + c

@@ -33,6 +33,12 @@ def hat(omega: np.ndarray) -> np.ndarray:
     return out
 
 
+def _as_float(a) -> np.ndarray:
+    """``a`` as a float array, float32 and float64 kept, anything else as float64."""
+    a = np.asarray(a)
+    return a if a.dtype in (np.float32, np.float64) else a.astype(np.float64)
+
+
 def _coefficients(theta: np.ndarray):
     """``a = sin t / t``, ``b = (1 - cos t) / t^2``, ``c = (t - sin t) / t^3``, series near 0."""
     t2 = theta * theta
@@ -46,7 +52,7 @@ def _coefficients(theta: np.ndarray):
 
 def so3_exp(omega: np.ndarray) -> np.ndarray:
     """Rotation matrix ``exp([omega]_x)`` by Rodrigues' formula, shape ``(..., 3, 3)``."""
-    omega = np.asarray(omega, dtype=np.result_type(omega, np.float32))
+    omega = _as_float(omega)
     theta = np.linalg.norm(omega, axis=-1)[..., None, None]
     a, b, _ = _coefficients(theta)
     W = hat(omega)
@@ -56,8 +62,8 @@ def so3_exp(omega: np.ndarray) -> np.ndarray:
 
 def so3_log(R: np.ndarray) -> np.ndarray:
     """Rotation vector of a rotation matrix, exact for angles in [0, pi]."""
-    R = np.asarray(R)
-    dtype = np.result_type(R, np.float32)
+    R = _as_float(R)
+    dtype = R.dtype
     Rd = R.astype(np.float64).reshape(-1, 3, 3)
     out = np.empty((Rd.shape[0], 3))
     for i, r in enumerate(Rd):
@@ -87,7 +93,7 @@ def _so3_log_single(R: np.ndarray) -> np.ndarray:
 
 def se3_exp(xi: np.ndarray) -> np.ndarray:
     """4x4 rigid motion ``exp(xi^)`` of twists ``xi = (v, omega)``, shape ``(..., 4, 4)``."""
-    xi = np.asarray(xi, dtype=np.result_type(xi, np.float32))
+    xi = _as_float(xi)
     v, omega = xi[..., :3], xi[..., 3:]
     theta = np.linalg.norm(omega, axis=-1)[..., None, None]
     a, b, c = _coefficients(theta)
@@ -105,8 +111,8 @@ def se3_exp(xi: np.ndarray) -> np.ndarray:
 
 def se3_log(M: np.ndarray) -> np.ndarray:
     """Twist ``(v, omega)`` of a 4x4 rigid motion, the inverse of :func:`se3_exp`."""
-    M = np.asarray(M)
-    dtype = np.result_type(M, np.float32)
+    M = _as_float(M)
+    dtype = M.dtype
     R, T = M[..., :3, :3].astype(np.float64), M[..., :3, 3].astype(np.float64)
     omega = so3_log(R).astype(np.float64)
     theta = np.linalg.norm(omega, axis=-1)[..., None, None]
@@ -115,7 +121,9 @@ def se3_log(M: np.ndarray) -> np.ndarray:
     small = theta < 1e-3
     ts = np.where(small, 1.0, theta)
     # V^-1 = I - W/2 + (1/t^2) (1 - t sin t / (2 (1 - cos t))) W^2
-    coef = np.where(small, 1 / 12 + t2 / 720, (1 - ts * np.sin(ts) / (2 * (1 - np.cos(ts)))) / ts**2)
+    coef = np.where(
+        small, 1 / 12 + t2 / 720, (1 - ts * np.sin(ts) / (2 * (1 - np.cos(ts)))) / ts**2
+    )
     Vinv = np.eye(3) - W / 2 + coef * (W @ W)
     v = (Vinv @ T[..., None])[..., 0]
     return np.concatenate([v, omega], axis=-1).astype(dtype)

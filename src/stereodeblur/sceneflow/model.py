@@ -46,13 +46,17 @@ class SceneFlow:
     def __post_init__(self):
         labels = np.asarray(self.labels)
         if labels.ndim != 2 or not np.issubdtype(labels.dtype, np.integer):
-            raise ValueError(f"labels must be a 2D integer array, got {labels.dtype} {labels.shape}")
+            raise ValueError(
+                f"labels must be a 2D integer array, got {labels.dtype} {labels.shape}"
+            )
         normals = np.asarray(self.normals, dtype=np.float64).reshape(-1, 3)
         twists = np.asarray(self.twists, dtype=np.float64).reshape(-1, 6)
         if normals.shape[0] != twists.shape[0]:
             raise ValueError(f"{normals.shape[0]} planes but {twists.shape[0]} motions")
         if labels.size and (labels.min() < 0 or labels.max() >= normals.shape[0]):
-            raise ValueError(f"labels must lie in [0, {normals.shape[0]}), got [{labels.min()}, {labels.max()}]")
+            raise ValueError(
+                f"labels must lie in [0, {normals.shape[0]}), got [{labels.min()}, {labels.max()}]"
+            )
         if not (np.all(np.isfinite(normals)) and np.all(np.isfinite(twists))):
             raise ValueError("planes and motions must be finite")
         occlusion = np.asarray(self.occlusion, dtype=bool)
@@ -114,4 +118,6 @@ class SceneFlow:
 
     def reversed(self) -> SceneFlow:
         """The same scene flow with every motion inverted (frame t to t - 1)."""
-        return SceneFlow(self.camera, self.labels, self.normals, -self.twists, self.occlusion, self.view)
+        return SceneFlow(
+            self.camera, self.labels, self.normals, -self.twists, self.occlusion, self.view
+        )

@@ -1,0 +1,62 @@
+import numpy as np
+
+from stereodeblur.geometry import StereoCamera, move_plane, plane_disparity, se3_exp
+from stereodeblur.sceneflow.from_gt import sceneflow_from_gt, superpixels
+from stereodeblur.sceneflow.model import SceneFlow
+
+CAMERA = StereoCamera([[120.0, 0, 40], [0, 120.0, 30], [0, 0, 1]], 0.1)
+
+
+def _truth(shape=(60, 80)):
+    labels = np.zeros(shape, dtype=np.int32)
+    labels[:, 40:] = 1
+    normals = np.array([[0.02, -0.01, 0.33], [-0.03, 0.0, 0.4]])
+    # The planes move apart (no occlusion at t + 1: occluded points have no true disparity).
+    twists = np.array([[-0.05, 0.02, -0.1, 0.01, 0.03, -0.02], [0.04, 0.0, 0.08, 0.0, -0.02, 0.01]])
+    return SceneFlow(CAMERA, labels, normals, twists, np.zeros(shape, bool))
+
+
+def _next_disparity_map(truth):
+    """Exact left disparity at t + 1: z-buffer of the moved planes, each where it came from."""
+    H, W = truth.shape
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
+    out = np.full((H, W), np.nan)
+    Hs = truth.homographies(np.array([1.0]))[:, 0]  # H_ref_from_t1 per plane
+    for k in range(truth.num_segments):
+        R, T = se3_exp(truth.twists[k])[:3, :3], se3_exp(truth.twists[k])[:3, 3]
+        d = plane_disparity(CAMERA, move_plane(truth.normals[k], R, T), x, y)
+        q = np.stack([x, y, np.ones_like(x)], -1) @ Hs[k].T
+        xr, yr = q[..., 0] / q[..., 2], q[..., 1] / q[..., 2]
+        inside = (xr >= -0.5) & (xr < W - 0.5) & (yr >= -0.5) & (yr < H - 0.5)
+        src = np.zeros((H, W), bool)
+        src[inside] = (
+            truth.labels[np.round(yr[inside]).astype(int), np.round(xr[inside]).astype(int)] == k
+        )
+        better = src & ~(out >= d)
+        out[better] = d[better]
+    return out
+
+
+def test_fit_recovers_planes_and_motions():
+    truth = _truth()
+    d0 = truth.disparity()
+    d1 = _next_disparity_map(truth)
+    labels = (np.arange(80)[None, :] // 10).repeat(60, 0).astype(np.int32)  # 8 vertical strips
+    fitted = sceneflow_from_gt(CAMERA, d0, d1, truth.flow(), labels)
+    interior = np.zeros(truth.shape, bool)
+    interior[5:-5, 5:-5] = True
+    np.testing.assert_allclose(fitted.disparity()[interior], d0[interior], atol=1e-6)
+    np.testing.assert_allclose(fitted.flow()[interior], truth.flow()[interior], atol=2e-3)
+    for k in range(8):
+        ref = truth.twists[0 if k < 4 else 1]
+        np.testing.assert_allclose(fitted.twists[k], ref, atol=1e-3)
+
+
+def test_superpixels_count():
+    from skimage.data import astronaut
+    from skimage.transform import resize
+
+    img = resize(astronaut(), (60, 80), anti_aliasing=True).astype(np.float32)
+    labels = superpixels(img, 48)
+    assert labels.min() == 0 and labels.max() + 1 == len(np.unique(labels))
+    assert 20 <= labels.max() + 1 <= 100
