@@ -41,20 +41,26 @@ def superpixels(image: np.ndarray, num_segments: int, *, compactness: float = 10
 
 
 def _sample_smooth(
-    image: np.ndarray, x: np.ndarray, y: np.ndarray, *, max_jump: float
+    image: np.ndarray, x: np.ndarray, y: np.ndarray, *, max_bend: float
 ) -> np.ndarray:
-    """Bilinear samples of a map with NaN holes; NaN where the 4 neighbours span a jump.
+    """Bilinear samples of a disparity map; NaN next to holes and discontinuities.
 
-    A sample between two surfaces would mix their disparities, so it is dropped.
+    Disparity is affine on a plane, so a second difference above ``max_bend`` px
+    marks a jump between surfaces; a sample there would mix them and is dropped.
     """
     H, W = image.shape
+    pad = np.pad(image, 1, mode="edge")
+    with np.errstate(invalid="ignore"):
+        bend = np.maximum(
+            np.abs(pad[1:-1, :-2] - 2 * image + pad[1:-1, 2:]),
+            np.abs(pad[:-2, 1:-1] - 2 * image + pad[2:, 1:-1]),
+        )
+    bad = ~(bend <= max_bend)
     x0 = np.clip(np.floor(x).astype(int), 0, W - 2)
     y0 = np.clip(np.floor(y).astype(int), 0, H - 2)
-    corners = np.stack([image[y0, x0], image[y0, x0 + 1], image[y0 + 1, x0], image[y0 + 1, x0 + 1]])
-    out = ndimage.map_coordinates(image, [y, x], order=1, mode="nearest")
-    with np.errstate(invalid="ignore"):
-        jump = corners.max(0) - corners.min(0)
-    return np.where(np.isfinite(jump) & (jump <= max_jump), out, np.nan)
+    near_bad = bad[y0, x0] | bad[y0, x0 + 1] | bad[y0 + 1, x0] | bad[y0 + 1, x0 + 1]
+    out = ndimage.map_coordinates(np.nan_to_num(image), [y, x], order=1, mode="nearest")
+    return np.where(near_bad, np.nan, out)
 
 
 def sceneflow_from_gt(
@@ -85,7 +91,7 @@ def sceneflow_from_gt(
     y, x = np.mgrid[0:H, 0:W].astype(np.float64)
     x1, y1 = x + flow[..., 0], y + flow[..., 1]
     inside = (x1 >= 0) & (x1 <= W - 1) & (y1 >= 0) & (y1 <= H - 1)
-    d1 = _sample_smooth(np.asarray(disparity_next, dtype=np.float64), x1, y1, max_jump=1.0)
+    d1 = _sample_smooth(np.asarray(disparity_next, dtype=np.float64), x1, y1, max_bend=0.1)
     d0 = np.asarray(disparity, dtype=np.float64)
     valid0 = np.isfinite(d0) & (d0 > 0)
     valid = valid0 & inside & np.isfinite(d1) & (d1 > 0)
