@@ -6,6 +6,7 @@ Bad input is reported as one line on stderr with exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -112,19 +113,26 @@ def cmd_deblur(args) -> int:
         if not frames:
             raise InputError(f"--motion-source gt: {args.scene} has no gt/flow/left/*.flo")
     views = ["left", "right"] if args.views == "both" else [args.views]
-    writer = SceneWriter(args.output, scene.info, overwrite=args.overwrite, protect=[scene.root])
+    output = Path(args.output)
+    created = not output.exists()
+    writer = SceneWriter(output, scene.info, overwrite=args.overwrite, protect=[scene.root])
     total = len(frames) * len(views)
     done = 0
-    for index in frames:
-        for view in views:
-            result = deblur_frame(scene, index, view=view, settings=settings, progress=say)
-            writer.write_frame(view, index, result.image)
-            done += 1
-            t = result.timings
-            say(
-                f"frame {index} {view} written ({done}/{total}): motion {t['motion']:.1f} s, "
-                f"operator {t['operator']:.1f} s, deconvolution {t['deconvolution']:.1f} s"
-            )
+    try:
+        for index in frames:
+            for view in views:
+                result = deblur_frame(scene, index, view=view, settings=settings, progress=say)
+                writer.write_frame(view, index, result.image)
+                done += 1
+                t = result.timings
+                say(
+                    f"frame {index} {view} written ({done}/{total}): motion {t['motion']:.1f} s, "
+                    f"operator {t['operator']:.1f} s, deconvolution {t['deconvolution']:.1f} s"
+                )
+    except BaseException:
+        if created and done == 0:  # leave nothing half-written behind
+            shutil.rmtree(output, ignore_errors=True)
+        raise
     print(f"wrote {done} frame(s) to {writer.root}")
     return 0
 

@@ -1,0 +1,520 @@
+"""Reading and writing stereo video scenes (``stereo-video/1``, see SCENE_FORMAT.md).
+
+Layout
+------
+::
+
+    SCENE/camera.json
+    SCENE/left/000000.png, SCENE/right/000000.png, ...   frames, numbered from 000000
+    SCENE/gt/sharp/VIEW/NNNNNN.png                        optional ground truth
+    SCENE/gt/disparity/VIEW/NNNNNN.pfm
+    SCENE/gt/flow/VIEW/NNNNNN.flo
+    SCENE/gt/mixed/VIEW/NNNNNN.png
+
+Views are ``'left'`` and ``'right'``. Images are float32 in [0, 1]; with
+``color == 'srgb'`` the files hold sRGB-encoded values and frames are decoded to
+linear on read (``linear=True``) and encoded on write. Disparities are (H, W) float32
+in pixels with NaN where unknown; flows are (H, W, 2) float32 (u, v) with NaN where
+unknown (stored as the Middlebury value 1e10). Bad input raises
+:class:`~stereodeblur.errors.InputError` or ``FileNotFoundError`` with a one-line
+message naming the file and what was expected.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import operator
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry.camera import VIEWS, Exposure, StereoCamera
+from .formats import (
+    PngInfo,
+    _atomic_write,
+    _check_image,
+    linear_to_srgb,
+    read_flo,
+    read_mask,
+    read_pfm,
+    read_png,
+    read_png_header,
+    srgb_to_linear,
+    write_flo,
+    write_mask,
+    write_pfm,
+    write_png,
+)
+
+FORMAT = "stereo-video/1"
+COLORS = ("linear", "srgb")
+GT_KINDS = ("sharp", "disparity", "flow", "mixed")
+_EXTENSIONS = {"frame": "png", "sharp": "png", "disparity": "pfm", "flow": "flo", "mixed": "png"}
+_CAMERA_KEYS = ("format", "K", "baseline", "frame_rate", "exposure", "color")
+_FRAME_NAME = re.compile(r"^(\d{6})\.png$")
+# Middlebury marks unknown flow with values above 1e9.
+FLOW_UNKNOWN = 1e10
+
+
+def _short(value, limit: int = 60) -> str:
+    """One-line, length-limited rendering of a value for error messages."""
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+# --------------------------------------------------------------------------- camera.json
+
+
+@dataclass(frozen=True)
+class CameraInfo:
+    """Contents of ``camera.json``: stereo camera, frame timing and colour encoding."""
+
+    camera: StereoCamera
+    exposure: Exposure
+    color: str = "linear"
+
+    def __post_init__(self):
+        if self.color not in COLORS:
+            raise InputError(f"color must be 'linear' or 'srgb', got {self.color!r}")
+
+
+def _number(path, key: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise InputError(f"{path}: {key!r} must be a finite number, got {_short(value)}")
+    return float(value)
+
+
+def read_camera(path: str | os.PathLike) -> CameraInfo:
+    """Read and validate ``camera.json`` (the file, or a scene folder holding it)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "camera.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"camera file not found: {path}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {path}: {exc}") from exc
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"{path}: invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
+        ) from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(_CAMERA_KEYS))
+    if unknown:
+        raise InputError(
+            f"{path}: unknown key {unknown[0]!r}, expected only {', '.join(_CAMERA_KEYS)}"
+        )
+    for key in _CAMERA_KEYS[:-1]:
+        if key not in data:
+            raise InputError(f"{path}: missing key {key!r}")
+    if data["format"] != FORMAT:
+        raise InputError(f"{path}: 'format' must be {FORMAT!r}, got {_short(data['format'])}")
+    K = data["K"]
+    if not (
+        isinstance(K, list)
+        and len(K) == 3
+        and all(isinstance(row, list) and len(row) == 3 for row in K)
+    ):
+        raise InputError(f"{path}: 'K' must be a 3x3 list of numbers, got {_short(K)}")
+    K = [[_number(path, f"K[{r}][{c}]", v) for c, v in enumerate(row)] for r, row in enumerate(K)]
+    baseline = _number(path, "baseline", data["baseline"])
+    frame_rate = _number(path, "frame_rate", data["frame_rate"])
+    exposure = _number(path, "exposure", data["exposure"])
+    color = data.get("color", "linear")
+    if baseline <= 0:
+        raise InputError(f"{path}: 'baseline' must be > 0, got {baseline}")
+    if frame_rate <= 0:
+        raise InputError(f"{path}: 'frame_rate' must be > 0, got {frame_rate}")
+    if exposure < 0:
+        raise InputError(f"{path}: 'exposure' must be >= 0, got {exposure}")
+    if color not in COLORS:
+        raise InputError(f"{path}: 'color' must be 'linear' or 'srgb', got {_short(color)}")
+    try:
+        camera = StereoCamera(np.array(K), baseline)
+    except ValueError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    try:
+        timing = Exposure(frame_rate, exposure)
+    except ValueError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    return CameraInfo(camera, timing, color)
+
+
+def _camera_json(info: CameraInfo) -> str:
+    data = {
+        "format": FORMAT,
+        "K": [[float(v) for v in row] for row in info.camera.K],
+        "baseline": float(info.camera.baseline),
+        "frame_rate": float(info.exposure.frame_rate),
+        "exposure": float(info.exposure.exposure),
+        "color": info.color,
+    }
+    return json.dumps(data, indent=2) + "\n"
+
+
+def write_camera(path: str | os.PathLike, info: CameraInfo) -> Path:
+    """Write ``info`` to ``camera.json`` at ``path`` (atomically)."""
+    if not isinstance(info, CameraInfo):
+        raise InputError(f"info must be a CameraInfo, got {type(info).__name__}")
+    return _atomic_write(path, _camera_json(info).encode("utf-8"))
+
+
+# --------------------------------------------------------------------------- paths
+
+
+def _check_view(view) -> str:
+    if view not in VIEWS:
+        raise InputError(f"view must be 'left' or 'right', got {view!r}")
+    return view
+
+
+def _check_index(index, num_frames: int | None = None) -> int:
+    try:
+        if isinstance(index, bool):
+            raise TypeError
+        index = operator.index(index)
+    except TypeError:
+        raise InputError(f"frame index must be an integer, got {index!r}") from None
+    if index < 0 or index > 999999 or (num_frames is not None and index >= num_frames):
+        top = 999999 if num_frames is None else num_frames - 1
+        raise InputError(f"frame index {index} is out of range 0..{top}")
+    return index
+
+
+def scene_path(root: str | os.PathLike, kind: str, view: str, index: int) -> Path:
+    """Path of a frame (``kind='frame'``) or ground-truth file in the scene at ``root``."""
+    if kind not in _EXTENSIONS:
+        raise InputError(f"kind must be one of {', '.join(_EXTENSIONS)}, got {kind!r}")
+    name = f"{_check_index(index):06d}.{_EXTENSIONS[kind]}"
+    folder = Path(root) / _check_view(view) if kind == "frame" else Path(root) / "gt" / kind / view
+    return folder / name
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _list_frames(folder: Path) -> list[int]:
+    """Frame numbers of ``folder``, sorted; hidden and non-PNG files are ignored."""
+    with os.scandir(folder) as scan:
+        entries = [(entry.name, entry.is_file()) for entry in scan]
+    numbers = []
+    for name, is_file in entries:
+        if name.startswith(".") or not name.lower().endswith(".png"):
+            continue
+        match = _FRAME_NAME.match(name)
+        if match is None:
+            raise InputError(
+                f"unexpected frame file name {folder / name}: expected six digits like 000000.png"
+            )
+        if is_file:
+            numbers.append(int(match.group(1)))
+    return sorted(numbers)
+
+
+class Scene:
+    """A stereo video scene on disk, validated on opening (see :func:`open_scene`).
+
+    Attributes
+    ----------
+    root : Path
+        Scene folder.
+    info : CameraInfo
+        Contents of ``camera.json``.
+    num_frames : int
+        Number of frames per view.
+    shape : tuple of int
+        Frame size ``(H, W)``.
+    channels : int
+        1 (grey) or 3 (RGB).
+    bit_depth : int
+        Bit depth of the frame PNGs.
+    """
+
+    def __init__(self, root: str | os.PathLike):
+        root = Path(root)
+        if not root.is_dir():
+            raise FileNotFoundError(f"scene folder not found: {root}")
+        self.root = root
+        self.info = read_camera(root / "camera.json")
+        numbers = {}
+        for view in VIEWS:
+            folder = root / view
+            if not folder.is_dir():
+                raise FileNotFoundError(f"missing frame folder {folder}")
+            numbers[view] = _list_frames(folder)
+            if not numbers[view]:
+                raise InputError(f"no frames in {folder}: expected 000000.png, 000001.png, ...")
+            for expected, found in enumerate(numbers[view]):
+                if found != expected:
+                    raise InputError(
+                        f"missing frame {scene_path(root, 'frame', view, expected)}: frames must "
+                        f"be numbered contiguously from 000000 (next found is {found:06d}.png)"
+                    )
+        left, right = len(numbers["left"]), len(numbers["right"])
+        if left != right:
+            short, other = ("right", "left") if right < left else ("left", "right")
+            count = min(left, right)
+            raise InputError(
+                f"missing frame {scene_path(root, 'frame', short, count)}: {other}/ has "
+                f"{max(left, right)} frames, {short}/ has {count}; both views need the same numbers"
+            )
+        if left < 2:
+            raise InputError(f"a scene needs at least two frames, found {left} in {root}")
+        self.num_frames = left
+        first = read_png_header(self.frame_path("left", 0))
+        for view in VIEWS:
+            for index in range(self.num_frames):
+                path = self.frame_path(view, index)
+                header = read_png_header(path)
+                if header != first:
+                    raise InputError(
+                        f"{path} is {_describe(header)}, expected {_describe(first)} "
+                        f"like {self.frame_path('left', 0)}"
+                    )
+        self._format = first
+        self.shape = (first.height, first.width)
+        self.channels = first.channels
+        self.bit_depth = first.bit_depth
+
+    def __repr__(self) -> str:
+        return (
+            f"Scene({str(self.root)!r}, num_frames={self.num_frames}, shape={self.shape}, "
+            f"channels={self.channels}, bit_depth={self.bit_depth}, color={self.info.color!r})"
+        )
+
+    # paths
+    def frame_path(self, view: str, index: int) -> Path:
+        """Path of frame ``index`` of ``view``."""
+        return scene_path(self.root, "frame", view, index)
+
+    def gt_path(self, kind: str, view: str, index: int) -> Path:
+        """Path of the ground truth ``kind`` ('sharp', 'disparity', 'flow', 'mixed')."""
+        if kind not in GT_KINDS:
+            raise InputError(
+                f"ground-truth kind must be one of {', '.join(GT_KINDS)}, got {kind!r}"
+            )
+        return scene_path(self.root, kind, view, _check_index(index, self.num_frames))
+
+    def has_gt(self, kind: str, view: str, index: int) -> bool:
+        """Whether the scene holds ground truth ``kind`` for frame ``index`` of ``view``."""
+        return self.gt_path(kind, view, index).is_file()
+
+    # frames
+    def read_frame(self, view: str, index: int, *, linear: bool = True) -> np.ndarray:
+        """Frame ``index`` of ``view`` as float32, linear when ``linear`` (else as stored)."""
+        path = self.frame_path(_check_view(view), _check_index(index, self.num_frames))
+        return self._read_image(path, linear=linear)
+
+    def read_gt_sharp(self, view: str, index: int, *, linear: bool = True) -> np.ndarray:
+        """Sharp image at the centre of frame ``index``'s exposure, like :meth:`read_frame`."""
+        return self._read_image(self.gt_path("sharp", view, index), linear=linear)
+
+    def read_gt_disparity(self, view: str, index: int) -> np.ndarray:
+        """Disparity (H, W) float32 in pixels, NaN where unknown (non-finite or <= 0)."""
+        path = self.gt_path("disparity", view, index)
+        disparity = read_pfm(path)
+        self._check_size(path, disparity, (*self.shape,), "an (H, W) disparity")
+        with np.errstate(invalid="ignore"):
+            disparity[~(np.isfinite(disparity) & (disparity > 0))] = np.nan
+        return disparity
+
+    def read_gt_flow(self, view: str, index: int) -> np.ndarray:
+        """Flow (H, W, 2) float32 (u, v) to the next frame, NaN where unknown."""
+        path = self.gt_path("flow", view, index)
+        flow = read_flo(path)
+        self._check_size(path, flow, (*self.shape, 2), "an (H, W, 2) flow")
+        with np.errstate(invalid="ignore"):
+            unknown = ~np.all(np.isfinite(flow) & (np.abs(flow) < 1e9), axis=2)
+        flow[unknown] = np.nan
+        return flow
+
+    def read_gt_mixed(self, view: str, index: int) -> np.ndarray:
+        """Mask (H, W) bool of pixels whose blur mixes differently moving surfaces."""
+        path = self.gt_path("mixed", view, index)
+        mask = read_mask(path)
+        self._check_size(path, mask, (*self.shape,), "an (H, W) mask")
+        return mask
+
+    def _read_image(self, path: Path, *, linear: bool) -> np.ndarray:
+        image = read_png(path)
+        expected = (*self.shape, 3) if self.channels == 3 else self.shape
+        self._check_size(path, image, expected, "an image")
+        if linear and self.info.color == "srgb":
+            image = srgb_to_linear(image)
+        return image
+
+    def _check_size(self, path: Path, array: np.ndarray, expected: tuple, what: str) -> None:
+        if array.shape != tuple(expected):
+            raise InputError(
+                f"{path} has shape {array.shape}, expected {what} of shape {tuple(expected)} "
+                f"like the scene's frames"
+            )
+
+
+def _describe(info: PngInfo) -> str:
+    kind = "grey" if info.channels == 1 else "RGB"
+    return f"{info.width}x{info.height} {info.bit_depth}-bit {kind}"
+
+
+def open_scene(path: str | os.PathLike) -> Scene:
+    """Open and validate the scene folder at ``path``."""
+    return Scene(path)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _existing_frame_shape(root: Path) -> tuple[int, int, int] | None:
+    """(H, W, channels) of a frame already in the scene at ``root``, if any."""
+    for view in VIEWS:
+        folder = root / view
+        if not folder.is_dir():
+            continue
+        with os.scandir(folder) as scan:
+            names = sorted(entry.name for entry in scan if entry.is_file())
+        for name in names:
+            if _FRAME_NAME.match(name):
+                header = read_png_header(folder / name)
+                return header.height, header.width, header.channels
+    return None
+
+
+class SceneWriter:
+    """Writes a scene folder, one file at a time and each atomically.
+
+    ``root`` may not exist yet, be empty, or already be a scene (hold
+    ``camera.json``), so an interrupted run can resume; a folder holding anything
+    else, or a scene with a different ``camera.json``, needs ``overwrite=True``.
+    ``protect`` lists input scene folders that must never be written into.
+    Existing files are never deleted.
+    """
+
+    def __init__(
+        self,
+        root: str | os.PathLike,
+        info: CameraInfo,
+        *,
+        overwrite: bool = False,
+        protect=(),
+    ):
+        if not isinstance(info, CameraInfo):
+            raise InputError(f"info must be a CameraInfo, got {type(info).__name__}")
+        root = Path(root)
+        resolved = root.resolve()
+        for item in [protect] if isinstance(protect, str | os.PathLike) else protect:
+            guarded = Path(item).resolve()
+            if resolved == guarded or guarded in resolved.parents or resolved in guarded.parents:
+                raise InputError(
+                    f"refusing to write output scene {root} into or around input {item}: "
+                    "choose a separate output folder"
+                )
+        if root.exists() and not root.is_dir():
+            raise InputError(f"output scene {root} exists and is not a folder")
+        camera_file = root / "camera.json"
+        text = _camera_json(info)
+        if root.is_dir() and not overwrite:
+            if camera_file.is_file():
+                try:
+                    same = _camera_json(read_camera(camera_file)) == text
+                except InputError:
+                    same = False
+                if not same:
+                    raise InputError(
+                        f"{camera_file} holds a different camera than this output; "
+                        "choose another folder or pass overwrite=True"
+                    )
+            elif any(not name.startswith(".") for name in os.listdir(root)):
+                raise InputError(
+                    f"output folder {root} is not empty and not a scene (no camera.json); "
+                    "choose another folder or pass overwrite=True"
+                )
+        self.root = root
+        self.info = info
+        self._shape = None if overwrite else _existing_frame_shape(root)
+        for view in VIEWS:
+            (root / view).mkdir(parents=True, exist_ok=True)
+        if not camera_file.is_file() or camera_file.read_bytes() != text.encode("utf-8"):
+            write_camera(camera_file, info)
+
+    def __repr__(self) -> str:
+        return f"SceneWriter({str(self.root)!r}, color={self.info.color!r})"
+
+    def path_for(self, kind: str, view: str, index: int) -> Path:
+        """Path of ``kind`` ('frame', 'sharp', 'disparity', 'flow', 'mixed') for a frame."""
+        return scene_path(self.root, kind, view, index)
+
+    def write_frame(
+        self, view: str, index: int, image: np.ndarray, *, bit_depth: int = 16, linear: bool = True
+    ) -> Path:
+        """Write frame ``index`` of ``view``; a linear image is sRGB-encoded if the scene is."""
+        return self._write_image("frame", view, index, image, bit_depth=bit_depth, linear=linear)
+
+    def write_gt_sharp(
+        self, view: str, index: int, image: np.ndarray, *, bit_depth: int = 16, linear: bool = True
+    ) -> Path:
+        """Write the sharp ground-truth image, encoded like :meth:`write_frame`."""
+        return self._write_image("sharp", view, index, image, bit_depth=bit_depth, linear=linear)
+
+    def write_gt_disparity(self, view: str, index: int, disparity: np.ndarray) -> Path:
+        """Write an (H, W) disparity in pixels; NaN (unknown) is stored as inf."""
+        disparity = np.asarray(disparity, dtype=np.float32)
+        if disparity.ndim != 2:
+            raise InputError(f"disparity must have shape (H, W), got {disparity.shape}")
+        path = self.path_for("disparity", view, index)
+        self._check_shape(path, disparity.shape)
+        return write_pfm(
+            path,
+            np.where(np.isnan(disparity), np.float32(np.inf), disparity),
+        )
+
+    def write_gt_flow(self, view: str, index: int, flow: np.ndarray) -> Path:
+        """Write an (H, W, 2) flow; pixels with a NaN component are stored as unknown (1e10)."""
+        flow = np.array(flow, dtype=np.float32)
+        if flow.ndim != 3 or flow.shape[2] != 2:
+            raise InputError(f"flow must have shape (H, W, 2), got {flow.shape}")
+        path = self.path_for("flow", view, index)
+        self._check_shape(path, flow.shape)
+        flow[np.any(np.isnan(flow), axis=2)] = FLOW_UNKNOWN
+        return write_flo(path, flow)
+
+    def write_gt_mixed(self, view: str, index: int, mask: np.ndarray) -> Path:
+        """Write the (H, W) mask of pixels mixing differently moving surfaces."""
+        path = self.path_for("mixed", view, index)
+        self._check_shape(path, np.shape(mask))
+        return write_mask(path, mask)
+
+    def _check_shape(self, path: Path, shape: tuple, *, channels: bool = False) -> None:
+        """Keep every written file the size (and frames and sharp images the channels)
+        of the first frame written or already on disk."""
+        if self._shape is None:
+            if not channels:
+                return
+            self._shape = tuple(shape)
+        expected = self._shape if channels else self._shape[:2]
+        if tuple(shape[: len(expected)]) != expected:
+            raise InputError(
+                f"cannot write {path} with shape {tuple(shape)}: the scene's frames have "
+                f"shape {expected}"
+            )
+
+    def _write_image(self, kind, view, index, image, *, bit_depth, linear) -> Path:
+        path = self.path_for(kind, view, index)
+        image = _check_image(image)
+        shape = image.shape if image.ndim == 3 else (*image.shape, 1)
+        self._check_shape(path, shape, channels=True)
+        if linear and self.info.color == "srgb":
+            image = linear_to_srgb(np.clip(image, 0.0, 1.0))
+        return write_png(path, image, bit_depth=bit_depth)
