@@ -10,8 +10,11 @@ from stereodeblur.io.scene import CameraInfo, SceneWriter
 def write_tiny_scene(root, *, num_frames=3, size=(40, 32), seed=0, gt=True):
     """A static random-texture scene: frames equal their sharp images, zero flow."""
     w, h = size
-    info = CameraInfo(StereoCamera([[50.0, 0, w / 2], [0, 50.0, h / 2], [0, 0, 1]], 0.1),
-                      Exposure(20.0, 0.04), "linear")
+    info = CameraInfo(
+        StereoCamera([[50.0, 0, w / 2], [0, 50.0, h / 2], [0, 0, 1]], 0.1),
+        Exposure(20.0, 0.04),
+        "linear",
+    )
     rng = np.random.default_rng(seed)
     writer = SceneWriter(root, info)
     for i in range(num_frames):

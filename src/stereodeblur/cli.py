@@ -30,7 +30,11 @@ class Progress:
 
     def __call__(self, message: str) -> None:
         if not self.quiet:
-            print(f"[{time.perf_counter() - self.start:7.1f} s] {message}", file=sys.stderr, flush=True)
+            print(
+                f"[{time.perf_counter() - self.start:7.1f} s] {message}",
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -67,17 +71,28 @@ def parse_frames(text: str | None, num_frames: int) -> list[int]:
 
 def _add_deblur_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("method (every variant of the paper's tables is a combination)")
-    g.add_argument("--kernels", choices=["homography", "displacement"], default="homography",
-                   help="blur kernels from 3D homographies (paper) or 2D displacements (baseline)")
-    g.add_argument("--motion-source", choices=["gt", "sceneflow", "initial-flow"],
-                   default=_default_motion_source(),
-                   help="where the motion comes from (default: %(default)s)")
+    g.add_argument(
+        "--kernels",
+        choices=["homography", "displacement"],
+        default="homography",
+        help="blur kernels from 3D homographies (paper) or 2D displacements (baseline)",
+    )
+    g.add_argument(
+        "--motion-source",
+        choices=["gt", "sceneflow", "initial-flow"],
+        default=_default_motion_source(),
+        help="where the motion comes from (default: %(default)s)",
+    )
     g.add_argument("--samples", type=int, default=70, help="time samples per exposure (paper: 70)")
     g.add_argument("--alpha", type=float, default=1e-3, help="prior weight (paper: 0.001)")
     g.add_argument("--irls", type=int, default=10, help="IRLS iterations (paper: 10)")
     g.add_argument("--cg", type=int, default=25, help="CG steps per IRLS iteration (paper: 25)")
-    g.add_argument("--segments", type=int, default=None,
-                   help="superpixels (default: 1200 at 640x480, scaled with area)")
+    g.add_argument(
+        "--segments",
+        type=int,
+        default=None,
+        help="superpixels (default: 1200 at 640x480, scaled with area)",
+    )
 
 
 def _default_motion_source() -> str:
@@ -154,6 +169,31 @@ def cmd_demo(args) -> int:
     return run_demo(Path(args.output), size=parse_size(args.size), progress=Progress(args.quiet))
 
 
+def cmd_sceneflow(args) -> int:
+    from .io.scene import open_scene
+    from .pipeline import neighbour_of
+    from .sceneflow.estimate import estimate_scene_flow
+    from .sceneflow.storage import write_sceneflow_outputs
+
+    say = Progress(args.quiet)
+    scene = open_scene(args.scene)
+    index = parse_frames(str(args.frame), scene.num_frames)[0]
+    neighbour = neighbour_of(index, scene.num_frames)
+    frames = [scene.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
+    estimate = estimate_scene_flow(
+        *frames,
+        scene.info.camera,
+        num_segments=args.segments,
+        progress=lambda stage, fraction: say(f"scene flow: {stage} ({100 * fraction:.0f} %)"),
+        debug_dir=args.debug_dir,
+    )
+    written = write_sceneflow_outputs(args.output, estimate.sceneflow, index)
+    print(f"scene flow of frame {index} -> {neighbour} written to {args.output}")
+    for path in written if isinstance(written, list | tuple) else []:
+        print(f"  {path}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     if args.suite == "planar":
         from .evaluation.planar_bench import main as bench_main
@@ -165,13 +205,19 @@ def cmd_bench(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="stereodeblur",
-        description="Remove motion blur from rectified stereo video (Sellent, Rother, Roth, ECCV 2016).",
+        description="Remove motion blur from rectified stereo video "
+        "(Sellent, Rother, Roth, ECCV 2016).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    p = sub.add_parser("deblur", help="deblur frames of a scene", description=(
-        "Deblur frames of a scene folder (stereo-video/1 format) and write them as a scene."))
+    p = sub.add_parser(
+        "deblur",
+        help="deblur frames of a scene",
+        description=(
+            "Deblur frames of a scene folder (stereo-video/1 format) and write them as a scene."
+        ),
+    )
     p.add_argument("scene", help="input scene folder")
     p.add_argument("-o", "--output", required=True, help="output scene folder")
     p.add_argument("--frames", help="frames to deblur: '1,3', '2:10' (default: all)")
@@ -181,31 +227,65 @@ def build_parser() -> argparse.ArgumentParser:
     _add_deblur_options(p)
     p.set_defaults(func=cmd_deblur)
 
-    p = sub.add_parser("demo", help="render a small scene, deblur it, write a side-by-side picture",
-                       description="Render a built-in blurred stereo scene, deblur it and write "
-                       "blurred | deblurred | sharp as a PNG; prints the PSNRs.")
+    p = sub.add_parser(
+        "sceneflow",
+        help="estimate the piecewise-rigid scene flow of a frame",
+        description="Estimate planes, rigid motions and occlusion of a frame "
+        "(towards the next frame) and write them in the layout of a scene's gt/.",
+    )
+    p.add_argument("scene", help="input scene folder")
+    p.add_argument("--frame", type=int, required=True, help="frame index")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument(
+        "--segments",
+        type=int,
+        default=None,
+        help="superpixels (default: 1200 at 640x480, scaled with area)",
+    )
+    p.add_argument("--debug-dir", help="write pictures of segments, disparity, flow, occlusion")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_sceneflow)
+
+    p = sub.add_parser(
+        "demo",
+        help="render a small scene, deblur it, write a side-by-side picture",
+        description="Render a built-in blurred stereo scene, deblur it and write "
+        "blurred | deblurred | sharp as a PNG; prints the PSNRs.",
+    )
     p.add_argument("-o", "--output", default="stereodeblur-demo", help="output folder")
     p.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("synth", help="render synthetic benchmark scenes",
-                       description="Render physically blurred benchmark scenes with ground truth.")
+    p = sub.add_parser(
+        "synth",
+        help="render synthetic benchmark scenes",
+        description="Render physically blurred benchmark scenes with ground truth.",
+    )
     synth = p.add_subparsers(dest="kind", required=True, parser_class=_Parser)
-    q = synth.add_parser("planar", help="textured planes under the paper's motions",
-                         description="Textured planes under the paper's 3D motions.")
+    q = synth.add_parser(
+        "planar",
+        help="textured planes under the paper's motions",
+        description="Textured planes under the paper's 3D motions.",
+    )
     q.add_argument("output", help="folder to write one scene per motion into")
     q.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default: %(default)s)")
     q.add_argument("--scenes", help="comma-separated motion names (default: all)")
     q.add_argument("-q", "--quiet", action="store_true")
     q.set_defaults(func=cmd_synth)
 
-    p = sub.add_parser("bench", help="benchmarks that print the paper's tables",
-                       description="Quality benchmarks on the synthetic scenes.")
+    p = sub.add_parser(
+        "bench",
+        help="benchmarks that print the paper's tables",
+        description="Quality benchmarks on the synthetic scenes.",
+    )
     bench = p.add_subparsers(dest="suite", required=True, parser_class=_Parser)
-    q = bench.add_parser("planar", help="paper Table 2 on planar scenes",
-                         description="PSNR/SSIM of displacement vs homography kernels from "
-                         "true motion on physically rendered planar scenes.")
+    q = bench.add_parser(
+        "planar",
+        help="paper Table 2 on planar scenes",
+        description="PSNR/SSIM of displacement vs homography kernels from "
+        "true motion on physically rendered planar scenes.",
+    )
     q.add_argument("--sizes", default="320x240,640x480", help="comma-separated WIDTHxHEIGHT")
     q.add_argument("--scenes", help="comma-separated motion names (default: all)")
     q.add_argument("--work", default="bench-planar", help="folder for rendered scenes and results")

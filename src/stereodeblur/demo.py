@@ -46,8 +46,10 @@ def run_demo(output: Path, *, size=(320, 240), progress=None) -> int:
     after = psnr(result.image, sharp, border=border)
     picture = output / "demo.png"
     write_png(picture, side_by_side([result.blurred, result.image, sharp]), bit_depth=8)
-    print(f"scene: {DEMO_SCENE}, {size[0]}x{size[1]}, motion from {settings.motion_source}, "
-          f"{settings.kernels} kernels")
+    print(
+        f"scene: {DEMO_SCENE}, {size[0]}x{size[1]}, motion from {settings.motion_source}, "
+        f"{settings.kernels} kernels"
+    )
     print(f"PSNR blurred   {before:6.2f} dB")
     print(f"PSNR deblurred {after:6.2f} dB  ({after - before:+.2f} dB)")
     print(f"picture (blurred | deblurred | sharp): {picture}")

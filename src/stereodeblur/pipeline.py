@@ -127,7 +127,10 @@ def invert_flow(flow: np.ndarray, *, num_iterations: int = 20) -> np.ndarray:
     for _ in range(num_iterations):
         coords = [y + g[..., 1], x + g[..., 0]]
         g = -np.stack(
-            [ndimage.map_coordinates(flow[..., c], coords, order=1, mode="nearest") for c in (0, 1)],
+            [
+                ndimage.map_coordinates(flow[..., c], coords, order=1, mode="nearest")
+                for c in (0, 1)
+            ],
             axis=-1,
         )
     return g.astype(np.float32)

@@ -104,7 +104,9 @@ def test_bad_frame_list(tiny_scene, tmp_path, capsys):
 
 def test_output_into_input_is_refused(tiny_scene, capsys):
     before = sorted(p.name for p in (tiny_scene / "left").iterdir())
-    code, err = _run(capsys, "deblur", str(tiny_scene), "-o", str(tiny_scene), "--motion-source", "gt")
+    code, err = _run(
+        capsys, "deblur", str(tiny_scene), "-o", str(tiny_scene), "--motion-source", "gt"
+    )
     _assert_one_line(code, err, "input")
     assert sorted(p.name for p in (tiny_scene / "left").iterdir()) == before
 
@@ -120,7 +122,9 @@ def test_no_traceback_in_a_real_process(tmp_path):
     scene = write_tiny_scene(tmp_path / "scene", num_frames=1)
     proc = subprocess.run(
         [sys.executable, "-m", "stereodeblur.cli", "deblur", str(scene), "-o", str(tmp_path / "o")],
-        capture_output=True, text=True, timeout=120,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr

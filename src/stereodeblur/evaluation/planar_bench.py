@@ -51,7 +51,9 @@ def evaluate_scene(root: Path, name: str, size: str, *, progress=None) -> Planar
         results[kernels] = deblur_frame(scene, FRAME, settings=settings, progress=progress).image
     blurred = scene.read_frame("left", FRAME)
     w, h = (int(v) for v in size.split("x"))
-    curvature = curvature_px(make_planar_scene(name, size=(w, h), num_frames=3, num_samples=2), FRAME)
+    curvature = curvature_px(
+        make_planar_scene(name, size=(w, h), num_frames=3, num_samples=2), FRAME
+    )
     return PlanarRow(
         scene=name,
         size=size,
