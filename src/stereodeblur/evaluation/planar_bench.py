@@ -38,7 +38,7 @@ def evaluate_scene(root: Path, name: str, size: str, *, progress=None) -> Planar
     """Deblur frame 1 of a rendered planar scene with both kernel types."""
     from ..io.scene import open_scene
     from ..pipeline import DeblurSettings, deblur_frame
-    from ..synth.planar import curvature_px, make_planar_scene
+    from ..synth.planar import curvature_px, planar_setup
     from .metrics import psnr, ssim
 
     t0 = time.perf_counter()
@@ -51,13 +51,11 @@ def evaluate_scene(root: Path, name: str, size: str, *, progress=None) -> Planar
         results[kernels] = deblur_frame(scene, FRAME, settings=settings, progress=progress).image
     blurred = scene.read_frame("left", FRAME)
     w, h = (int(v) for v in size.split("x"))
-    curvature = curvature_px(
-        make_planar_scene(name, size=(w, h), num_frames=3, num_samples=2), FRAME
-    )
+    curvature = curvature_px(planar_setup(name, size=(w, h)), FRAME).max_px
     return PlanarRow(
         scene=name,
         size=size,
-        curvature_px=float(getattr(curvature, "max", curvature)),
+        curvature_px=float(curvature),
         psnr_blurred=psnr(blurred, sharp, border=border),
         ssim_blurred=ssim(blurred, sharp, border=border),
         psnr_displacement=psnr(results["displacement"], sharp, border=border),
