@@ -1,0 +1,246 @@
+"""Conjugate gradients on images, every colour channel an independent system.
+
+Conventions
+-----------
+The operator is a callable mapping an array of image shape, ``(H, W)`` or ``(H, W, C)``,
+to an array of the same shape; it must be symmetric positive (semi)definite on each
+channel and must treat the channels independently (the same matrix on every channel),
+as the normal operators of :mod:`stereodeblur.deconv.irls` do. Each channel gets its own
+step sizes, so solving ``C`` channels at once equals ``C`` separate solves. Vectors are
+float32 (float64 if the right-hand side is float64); inner products are accumulated in
+float64, row by row and then summed in a fixed order, so results do not depend on the
+number of threads.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from stereodeblur.errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class CGResult:
+    """Outcome of :func:`conjugate_gradient`.
+
+    Attributes
+    ----------
+    solution : ndarray
+        The last iterate, shape and dtype of the working arrays (the right-hand side's shape).
+    residual_norms : ndarray, shape (num_iterations + 1, C)
+        Euclidean norm of the (recursively updated) residual ``b - M x`` per channel, before
+        the first step and after every step; ``C = 1`` for ``(H, W)`` images.
+    num_iterations : int
+        Steps taken (fewer than requested when every channel met ``rtol``).
+    """
+
+    solution: np.ndarray
+    residual_norms: np.ndarray
+    num_iterations: int
+
+
+@numba.njit(cache=True)
+def row_channel_dots(a, b, channels, partial, row):  # pragma: no cover - compiled
+    """``partial[row, c] = sum_k a[k] b[k]`` over the entries of channel ``c`` of a flat row."""
+    size = a.size
+    if channels == 3:
+        acc0 = 0.0
+        acc1 = 0.0
+        acc2 = 0.0
+        for k in range(0, size, 3):
+            acc0 += np.float64(a[k]) * np.float64(b[k])
+            acc1 += np.float64(a[k + 1]) * np.float64(b[k + 1])
+            acc2 += np.float64(a[k + 2]) * np.float64(b[k + 2])
+        partial[row, 0] = acc0
+        partial[row, 1] = acc1
+        partial[row, 2] = acc2
+    else:
+        for c in range(channels):
+            acc = 0.0
+            for k in range(c, size, channels):
+                acc += np.float64(a[k]) * np.float64(b[k])
+            partial[row, c] = acc
+
+
+@numba.njit(parallel=True, cache=True)
+def _channel_dots(a, b, partial):  # pragma: no cover - compiled
+    """``partial[i, c] = sum_j a[i, j, c] * b[i, j, c]``, accumulated in float64."""
+    rows, cols, channels = a.shape
+    a2 = a.reshape(rows, cols * channels)
+    b2 = b.reshape(rows, cols * channels)
+    for i in numba.prange(rows):
+        row_channel_dots(a2[i], b2[i], channels, partial, i)
+
+
+@numba.njit(parallel=True, cache=True)
+def _update(x, r, p, q, coef, partial):  # pragma: no cover - compiled
+    """``x += step p``, ``r -= step q`` (``coef``: the step repeated along a row); ``r . r``."""
+    rows, cols, channels = x.shape
+    size = coef.size
+    x2 = x.reshape(rows, size)
+    r2 = r.reshape(rows, size)
+    p2 = p.reshape(rows, size)
+    q2 = q.reshape(rows, size)
+    for i in numba.prange(rows):
+        x_row = x2[i]
+        r_row = r2[i]
+        p_row = p2[i]
+        q_row = q2[i]
+        for k in range(size):
+            x_row[k] += coef[k] * p_row[k]
+            r_row[k] -= coef[k] * q_row[k]
+        row_channel_dots(r_row, r_row, channels, partial, i)
+
+
+@numba.njit(parallel=True, cache=True)
+def _direction(p, r, coef):  # pragma: no cover - compiled
+    """``p = r + beta p``; ``coef`` is beta repeated along a row."""
+    rows = p.shape[0]
+    size = coef.size
+    p2 = p.reshape(rows, size)
+    r2 = r.reshape(rows, size)
+    for i in numba.prange(rows):
+        for k in range(size):
+            p2[i, k] = r2[i, k] + coef[k] * p2[i, k]
+
+
+# Below this many values per vector the kernels run on the calling thread only: waking the
+# other threads costs more than it saves on small images.
+PARALLEL_MIN_SIZE = 1 << 16
+
+
+@contextmanager
+def threads_for(size: int) -> Iterator[None]:
+    """Run numba parallel regions in the block on one thread when ``size`` is small."""
+    if size >= PARALLEL_MIN_SIZE:
+        yield
+        return
+    previous = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)
+
+
+def _as_3d(array: np.ndarray) -> np.ndarray:
+    """View an ``(H, W)`` array as ``(H, W, 1)``; ``(H, W, C)`` unchanged."""
+    return array[..., None] if array.ndim == 2 else array
+
+
+def conjugate_gradient(
+    operator: Callable[[np.ndarray], np.ndarray],
+    rhs: np.ndarray,
+    *,
+    initial: np.ndarray | None = None,
+    num_iterations: int = 25,
+    rtol: float | None = None,
+) -> CGResult:
+    """Solve ``M x = b`` per channel by conjugate gradients.
+
+    Parameters
+    ----------
+    operator : callable
+        ``M``: maps an array shaped like ``rhs`` to one of the same shape; symmetric positive
+        (semi)definite and the same on every channel. Its result may be modified in place
+        unless it shares memory with the argument.
+    rhs : ndarray, shape (H, W) or (H, W, C)
+        ``b``.
+    initial : ndarray, optional
+        Starting point ``x0`` (zeros by default); not modified.
+    num_iterations : int
+        Number of steps (the paper uses 25 per IRLS iteration).
+    rtol : float, optional
+        A channel stops once its residual norm is ``<= rtol * ||b||``; iteration ends early
+        when all channels have stopped. Without it exactly ``num_iterations`` steps are taken
+        (a channel whose curvature ``p^T M p`` is not positive stops regardless).
+
+    Returns
+    -------
+    CGResult
+    """
+    rhs = np.asarray(rhs)
+    if rhs.ndim not in (2, 3) or rhs.size == 0:
+        raise InputError(f"rhs must have shape (H, W) or (H, W, C), got {rhs.shape}")
+    if int(num_iterations) != num_iterations or num_iterations < 0:
+        raise InputError(f"num_iterations must be a non-negative integer, got {num_iterations!r}")
+    if rtol is not None and not (np.isfinite(rtol) and rtol >= 0):
+        raise InputError(f"rtol must be a non-negative number or None, got {rtol!r}")
+    dtype = np.float64 if rhs.dtype == np.float64 else np.float32
+    shape = rhs.shape
+    b = _as_3d(np.ascontiguousarray(rhs, dtype=dtype))
+
+    def apply(vector3d: np.ndarray, partial: np.ndarray) -> np.ndarray:
+        result = np.asarray(operator(vector3d.reshape(shape)))
+        if result.shape != shape:
+            raise InputError(f"operator returned shape {result.shape}, expected {shape}")
+        if result.dtype != dtype or not result.flags.c_contiguous:
+            result = np.ascontiguousarray(result, dtype=dtype)
+        result = _as_3d(result)
+        _channel_dots(vector3d, result, partial)
+        return result
+
+    if initial is None:
+        x = None
+    else:
+        initial = np.asarray(initial)
+        if initial.shape != shape:
+            raise InputError(f"initial has shape {initial.shape}, expected {shape}")
+        x = _as_3d(np.array(initial, dtype=dtype, order="C"))
+    with threads_for(b.size):
+        x, norms, taken = solve(apply, b, x, num_iterations=int(num_iterations), rtol=rtol)
+    return CGResult(solution=x.reshape(shape), residual_norms=norms, num_iterations=taken)
+
+
+def solve(apply, b, x, *, num_iterations: int, rtol: float | None, residual=None):
+    """The CG iteration on validated ``(H, W, C)`` C-contiguous arrays.
+
+    ``apply(p, partial)`` returns ``M p`` (an array it owns, ``(H, W, C)``, C-contiguous, of
+    ``b``'s dtype) and writes the row sums of ``p * (M p)`` per channel into ``partial``
+    (``(H, C)`` float64), so that callers can fuse that product into the operator. ``x`` is
+    the starting point, updated in place (zeros if None). ``residual``, if given, is
+    ``b - M x`` computed by the caller (then owned and overwritten by the solver). Returns
+    ``(x, residual_norms, steps)``.
+    """
+    rows, channels = b.shape[0], b.shape[2]
+    partial = np.empty((rows, channels), dtype=np.float64)
+    if x is None:
+        x = np.zeros_like(b)
+        r = b.copy()
+    elif residual is not None:
+        r = residual
+    else:
+        r = b - apply(x, partial)
+    _channel_dots(b, b, partial)
+    target = None if rtol is None else rtol * np.sqrt(partial.sum(axis=0))
+    _channel_dots(r, r, partial)
+    rr = partial.sum(axis=0)
+    norms = [np.sqrt(rr)]
+    active = np.ones(channels, dtype=bool) if target is None else norms[0] > target
+    p = r.copy()
+    coef = np.empty(b.shape[1] * channels, dtype=b.dtype)  # a per-channel scalar along a row
+    coef_rows = coef.reshape(b.shape[1], channels)
+    taken = 0
+    for _ in range(num_iterations):
+        active &= rr > 0
+        if not active.any():
+            break
+        q = apply(p, partial)
+        curvature = partial.sum(axis=0)
+        active &= curvature > 0
+        coef_rows[:] = np.where(active, rr / np.where(active, curvature, 1.0), 0.0)
+        _update(x, r, p, q, coef, partial)
+        rr_new = np.where(active, partial.sum(axis=0), rr)
+        taken += 1
+        norms.append(np.sqrt(rr_new))
+        coef_rows[:] = np.where(active, rr_new / np.where(rr > 0, rr, 1.0), 0.0)
+        rr = rr_new
+        if target is not None:
+            active &= np.sqrt(rr) > target
+        _direction(p, r, coef)
+    return x, np.array(norms), taken
