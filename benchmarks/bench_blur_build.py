@@ -1,0 +1,197 @@
+"""Time the assembly and application of both blur operators.
+
+For each image size a random but realistic scene flow is drawn (seeded): a
+camera moving forward with a little yaw and pitch over ~1200 planar segments
+per 640x480 (scaled with the area, Voronoi cells of random seeds), depths 3 to
+30, and a fifth of the segments moving independently. Exposure: 25 fps, 20 ms
+(duty cycle 0.5), ``N = 70`` instants. The displacement operator uses the
+scene flow's 2D flow forward and backward.
+
+Numba compilation is excluded from the timings (one warm-up build) and
+reported separately. Each operator is then built ``--repeats`` times; the
+script prints the median build time, nnz, matrix memory (CSR of A and of A^T),
+the peak memory one build adds (resident memory sampled every millisecond
+during the build, minus the memory before it), the median time of one forward and one adjoint on an
+RGB float32 image (numba kernels, and scipy's SpMV for comparison) and the peak
+resident memory of the whole process so far.
+
+Run: ``python benchmarks/bench_blur_build.py [--sizes 320x240 640x480 1242x375]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import gc
+import resource
+import threading
+import time
+from functools import partial
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from stereodeblur.blur.displacement import displacement_blur
+from stereodeblur.blur.homography import homography_blur
+from stereodeblur.geometry.camera import Exposure, StereoCamera
+from stereodeblur.sceneflow.model import SceneFlow
+
+EXPOSURE = Exposure(frame_rate=25.0, exposure=0.02)
+NUM_SAMPLES = 70
+SEGMENTS_PER_PIXEL = 1200 / (640 * 480)
+
+
+def random_scene(height: int, width: int, seed: int = 0) -> SceneFlow:
+    """A seeded, realistic piecewise-rigid scene flow over an image of this size."""
+    rng = np.random.default_rng(seed)
+    f = 0.85 * max(height, width)
+    K = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1]])
+    camera = StereoCamera(K, baseline=0.54)
+    num_segments = max(1, round(SEGMENTS_PER_PIXEL * height * width))
+    seeds = rng.uniform([0, 0], [width, height], size=(num_segments, 2))
+    y, x = np.mgrid[0:height, 0:width]
+    _, labels = cKDTree(seeds).query(np.column_stack([x.ravel(), y.ravel()]))
+    labels = labels.reshape(height, width).astype(np.int32)
+    depth = rng.uniform(3.0, 30.0, num_segments)
+    tilt = rng.uniform(-0.3, 0.3, (num_segments, 2))
+    normals = np.column_stack([tilt, np.ones(num_segments)]) / depth[:, None]
+    ego = np.array([0.05, 0.02, -1.0, 0.002, 0.01, 0.003])  # camera moves forward
+    twists = np.tile(ego, (num_segments, 1))
+    movers = rng.random(num_segments) < 0.2
+    twists[movers, :3] += rng.normal(0, 0.5, (movers.sum(), 3))
+    twists[movers, 3:] += rng.normal(0, 0.02, (movers.sum(), 3))
+    return SceneFlow(camera, labels, normals, twists, np.zeros((height, width), bool))
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far (``getrusage``), MiB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def current_rss_mb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() / 2**20
+
+
+def build_peak_mb(build) -> float:
+    """Peak memory one build adds over the memory before it, sampled every millisecond.
+
+    Freed memory is first handed back to the system (glibc ``malloc_trim``) so that
+    the build cannot hide in memory the allocator kept from earlier builds.
+    """
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+    before = current_rss_mb()
+    peak = before
+    done = threading.Event()
+
+    def sample():
+        nonlocal peak
+        while not done.is_set():
+            peak = max(peak, current_rss_mb())
+            time.sleep(0.001)
+
+    sampler = threading.Thread(target=sample)
+    sampler.start()
+    result = build()
+    peak = max(peak, current_rss_mb())
+    done.set()
+    sampler.join()
+    del result
+    return peak - before
+
+
+def timed(fn, repeats: int) -> tuple[float, object]:
+    """Median wall time of ``fn()`` and its last result (earlier results are freed first)."""
+    times = []
+    result = None
+    for _ in range(repeats):
+        result = None
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), result
+
+
+def matrix_mb(op) -> float:
+    total = 0
+    for m in (op.matrix, op._matrix_t):
+        total += m.data.nbytes + m.indices.nbytes + m.indptr.nbytes
+    return total / 2**20
+
+
+def apply_times(op, image: np.ndarray, repeats: int) -> dict[str, float]:
+    """Median seconds of one forward and one adjoint: numba kernels, and scipy's SpMV."""
+    flat = image.reshape(-1, image.shape[2])
+    A, At = op.matrix, op._matrix_t
+    return {
+        "forward": timed(lambda: op.forward(image), repeats)[0],
+        "adjoint": timed(lambda: op.adjoint(image), repeats)[0],
+        "scipy forward": timed(lambda: A @ flat, repeats)[0],
+        "scipy adjoint": timed(lambda: At @ flat, repeats)[0],
+    }
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--sizes",
+        nargs="+",
+        default=["320x240", "640x480", "1242x375"],
+        help="image sizes WIDTHxHEIGHT",
+    )
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args(argv)
+
+    print(
+        f"exposure duty cycle {EXPOSURE.duty_cycle}, N = {NUM_SAMPLES}, "
+        f"repeats {args.repeats} (median)"
+    )
+    compiled = False
+    for size in args.sizes:
+        width, height = (int(v) for v in size.lower().split("x"))
+        scene = random_scene(height, width)
+        flow_forward = scene.flow()
+        flow_backward = scene.reversed().flow()
+        length = np.linalg.norm(flow_forward, axis=-1) * EXPOSURE.duty_cycle
+        image = np.random.default_rng(1).random((height, width, 3), dtype=np.float32)
+        builders = {
+            "homography": partial(homography_blur, scene, EXPOSURE, num_samples=NUM_SAMPLES),
+            "displacement": partial(
+                displacement_blur, flow_forward, flow_backward, EXPOSURE, num_samples=NUM_SAMPLES
+            ),
+        }
+        print(
+            f"\n{width}x{height}: {scene.num_segments} segments, blur length px "
+            f"median {np.median(length):.1f}, 95% {np.percentile(length, 95):.1f}, "
+            f"max {length.max():.1f}"
+        )
+        for name, build in builders.items():
+            t0 = time.perf_counter()
+            op = build()
+            op.adjoint(op.forward(image))
+            first = time.perf_counter() - t0
+            if not compiled:
+                print(
+                    f"  first call (numba compile or cache load + build + apply) "
+                    f"{name}: {first:.2f} s"
+                )
+            build_time, op = timed(build, args.repeats)
+            ms = {k: 1e3 * v for k, v in apply_times(op, image, 4 * args.repeats).items()}
+            print(
+                f"  {name:12s} build {build_time:6.3f} s   nnz {op.matrix.nnz / 1e6:6.2f} M "
+                f"({op.matrix.nnz / op.matrix.shape[0]:4.1f}/row)   A+A^T {matrix_mb(op):6.1f} MB"
+                f"   build peak +{build_peak_mb(build):5.0f} MB\n"
+                f"  {'':12s} RGB float32: forward {ms['forward']:5.1f} ms, adjoint "
+                f"{ms['adjoint']:5.1f} ms (scipy {ms['scipy forward']:5.1f} / "
+                f"{ms['scipy adjoint']:5.1f} ms)   process peak RSS {peak_rss_mb():5.0f} MB"
+            )
+            del op
+        compiled = True
+
+
+if __name__ == "__main__":
+    main()

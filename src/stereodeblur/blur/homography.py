@@ -1,0 +1,92 @@
+"""The homography-induced blur operator of piecewise-rigid scene flow (paper Sec. 3).
+
+Row ``x`` of the operator is the discretised exposure integral of Eq. 3-4:
+the mean over the ``N`` instants ``t`` of the sharp reference image, bilinearly
+interpolated at ``H_ref_from_t[label(x), t] @ x``. Sample instants, positions,
+bilinear weights and the border rule (clamp to the image, i.e. replicate edge
+content) are those of :mod:`.trajectories`; duplicate taps are summed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..geometry.camera import Exposure
+from ..sceneflow.model import SceneFlow
+from . import _kernels
+from .operator import SparseBlur
+from .trajectories import bilinear_taps, homography_positions
+
+
+def _check_num_samples(num_samples) -> int:
+    if isinstance(num_samples, bool) or not isinstance(num_samples, int | np.integer):
+        raise ValueError(f"num_samples must be an integer >= 1, got {num_samples!r}")
+    if num_samples < 1:
+        raise ValueError(f"num_samples must be an integer >= 1, got {num_samples}")
+    return int(num_samples)
+
+
+def csr_from_arrays(indptr, indices, data, size: int) -> sp.csr_matrix:
+    """A ``size x size`` CSR matrix, with int32 index arrays when they fit."""
+    if indptr[-1] < np.iinfo(np.int32).max:
+        indptr = indptr.astype(np.int32)
+    else:
+        indices = indices.astype(np.int64)
+    matrix = sp.csr_matrix((data, indices, indptr), shape=(size, size))
+    matrix.has_sorted_indices = True
+    return matrix
+
+
+def _inputs(sceneflow: SceneFlow, exposure: Exposure, num_samples) -> tuple:
+    num_samples = _check_num_samples(num_samples)
+    fractions = exposure.sample_fractions(num_samples)
+    homographies = np.ascontiguousarray(sceneflow.homographies(fractions), dtype=np.float64)
+    labels = np.ascontiguousarray(sceneflow.labels, dtype=np.int32)
+    return homographies, labels, num_samples
+
+
+def homography_blur(
+    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70
+) -> SparseBlur:
+    """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
+
+    Parameters
+    ----------
+    sceneflow : SceneFlow
+        Labels, planes and motions over the reference view (``sceneflow.view``).
+    exposure : Exposure
+        Frame rate and exposure time; the instants are ``exposure.sample_fractions``.
+    num_samples : int, optional
+        Number ``N`` of instants in the exposure integral (paper: ``N = 70``).
+
+    Returns
+    -------
+    SparseBlur
+        Rows: blurred pixels; columns: pixels of the sharp reference image.
+        Every row sums to one.
+    """
+    homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
+    indptr, indices, data = _kernels.assemble_homography(homographies, labels, num_samples)
+    matrix = csr_from_arrays(indptr, indices, data, labels.size)
+    return SparseBlur(matrix, tuple(labels.shape))
+
+
+def homography_blur_reference(
+    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70
+) -> SparseBlur:
+    """Pure-numpy, slow construction of the same operator as :func:`homography_blur`.
+
+    Used by the tests to check the fast assembly; it takes its positions and
+    weights from the vectorised forms in :mod:`.trajectories`.
+    """
+    homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
+    size = labels.size
+    positions = homography_positions(homographies, labels).reshape(size, num_samples, 2)
+    index, weight, valid = bilinear_taps(positions, labels.shape, border="clamp")
+    rows = np.broadcast_to(np.arange(size)[:, None, None], index.shape)
+    matrix = sp.coo_matrix((weight[valid], (rows[valid], index[valid])), shape=(size, size)).tocsr()
+    matrix.sum_duplicates()
+    matrix.data = (matrix.data / num_samples).astype(np.float32)
+    matrix.sort_indices()
+    return SparseBlur(matrix, tuple(labels.shape))

@@ -1,0 +1,108 @@
+"""The homography-induced operator against independent constructions of paper Eq. 3-4."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from stereodeblur.blur.homography import homography_blur, homography_blur_reference
+from stereodeblur.geometry import move_plane, se3_exp
+
+from .scenes import EXPOSURE, random_sceneflow, translation_sceneflow
+
+SHAPE = (40, 56)
+
+
+@pytest.mark.parametrize("view", ["left", "right"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_sparse_equals_numpy_reference(view, seed):
+    scene = random_sceneflow(SHAPE, seed, view=view, grid=(3, 4), speed=2.0)
+    fast = homography_blur(scene, EXPOSURE).matrix
+    slow = homography_blur_reference(scene, EXPOSURE).matrix
+    np.testing.assert_array_equal(fast.indptr, slow.indptr)
+    np.testing.assert_array_equal(fast.indices, slow.indices)
+    np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)
+
+
+def test_reference_covers_positions_outside_the_image():
+    """Content entering from outside: many samples of the fast path were clamped."""
+    scene = translation_sceneflow(SHAPE, (1.5, -1.0))
+    fast = homography_blur(scene, EXPOSURE, num_samples=9).matrix
+    slow = homography_blur_reference(scene, EXPOSURE, num_samples=9).matrix
+    assert abs(fast - slow).max() < 1e-6
+    # Content moves right by ~9 px over the exposure: in the first half of it, blurred
+    # column 0 shows content from outside, i.e. (border rule) the sharp edge column 0.
+    rows = fast[np.arange(5, SHAPE[0] - 5) * SHAPE[1]].tocoo()
+    on_edge = np.bincount(rows.row, weights=rows.data * (rows.col % SHAPE[1] == 0))
+    np.testing.assert_allclose(on_edge, 5 / 9, atol=1e-6)  # 5 of 9 instants have s <= 0
+
+
+@pytest.mark.parametrize("velocity", [(0.3, 0.0), (0.2, -0.25), (-0.35, 0.1)])
+def test_fronto_parallel_translation_matches_ndimage_shift(velocity):
+    depth = 3.0
+    scene = translation_sceneflow(SHAPE, velocity, depth)
+    num_samples = 15
+    op = homography_blur(scene, EXPOSURE, num_samples=num_samples)
+    image = np.random.default_rng(0).random(SHAPE)
+    focal = scene.camera.K[[0, 1], [0, 1]]
+    expected = np.zeros(SHAPE)
+    for s in EXPOSURE.sample_fractions(num_samples):
+        dx, dy = s * focal * np.asarray(velocity) / depth  # content moves by (dx, dy)
+        expected += ndimage.shift(image, (dy, dx), order=1, mode="nearest")
+    expected /= num_samples
+    reach = int(np.ceil(EXPOSURE.duty_cycle / 2 * np.abs(focal * velocity / depth).max())) + 1
+    inner = (slice(reach, -reach), slice(reach, -reach))
+    blurred = op.forward(image)
+    np.testing.assert_allclose(blurred[inner], expected[inner], atol=2e-6)
+    assert np.abs(blurred - image)[inner].mean() > 0.05  # it does blur
+
+
+def _tracked_reference_positions(scene, fractions):
+    """For every pixel x and instant s: the reference pixel whose 3D point is seen at x at s.
+
+    Independent of the homographies: intersect x's ray with the moved plane, move the
+    point back to the reference instant and project it into the same view.
+    """
+    cam = scene.camera
+    center = cam.center(scene.view)
+    H, W = scene.shape
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
+    rays = np.stack([x, y, np.ones_like(x)], -1) @ cam.K_inv.T
+    out = np.empty((len(fractions), H, W, 2))
+    for i, s in enumerate(fractions):
+        points = np.empty((H, W, 3))
+        for label in range(scene.num_segments):
+            M = se3_exp(s * scene.twists[label])
+            R, T = M[:3, :3], M[:3, 3]
+            n_t = move_plane(scene.normals[label], R, T)  # left coordinates, instant s
+            mask = scene.labels == label
+            # Points c + d * ray with (c + d * ray)^T n_t = 1.
+            d = (1.0 - center @ n_t) / (rays[mask] @ n_t)
+            P_t = center + d[:, None] * rays[mask]
+            points[mask] = (P_t - T) @ R  # R^T (P_t - T)
+        out[i] = cam.project(points, scene.view)
+    return out
+
+
+@pytest.mark.parametrize("view", ["left", "right"])
+def test_rows_follow_projected_3d_trajectories(view):
+    """A ramp image is interpolated exactly, so blurring it averages the tracked positions."""
+    scene = random_sceneflow(SHAPE, 5, view=view, grid=(2, 2), speed=1.5)
+    num_samples = 12
+    fractions = EXPOSURE.sample_fractions(num_samples)
+    tracked = _tracked_reference_positions(scene, fractions)
+    y, x = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]].astype(np.float64)
+    ramp = np.stack([x, y], axis=-1)  # channel 0: x, channel 1: y
+    blurred = homography_blur(scene, EXPOSURE, num_samples=num_samples).forward(ramp)
+    expected = tracked.mean(axis=0)
+    inside = np.all((tracked >= 0) & (tracked <= [SHAPE[1] - 1, SHAPE[0] - 1]), axis=(0, 3))
+    assert inside.mean() > 0.6
+    np.testing.assert_allclose(blurred[inside], expected[inside], atol=1e-3)
+    moved = np.abs(tracked[-1] - tracked[0]).max(axis=-1)
+    assert np.median(moved[inside]) > 1.0  # trajectories are pixels long
+
+
+@pytest.mark.parametrize("num_samples", [0, -3, 2.5, True])
+def test_bad_num_samples(num_samples):
+    scene = random_sceneflow(SHAPE, 0)
+    with pytest.raises(ValueError, match="num_samples"):
+        homography_blur(scene, EXPOSURE, num_samples=num_samples)
