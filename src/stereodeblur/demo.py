@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-DEMO_SCENE = "forward_yaw"
+DEMO_SCENE = "yaw"
 DEMO_FRAME = 1
 
 
@@ -24,7 +24,7 @@ def run_demo(output: Path, *, size=(320, 240), progress=None) -> int:
     """Render, deblur and compare; writes ``output/demo.png`` and prints the PSNRs."""
     from .cli import _default_motion_source
     from .evaluation.metrics import psnr
-    from .io.formats import write_png
+    from .io.formats import linear_to_srgb, write_png
     from .io.scene import SceneWriter, open_scene
     from .pipeline import DeblurSettings, deblur_frame
     from .synth.planar import make_planar_scene, write_rendered_scene
@@ -45,7 +45,9 @@ def run_demo(output: Path, *, size=(320, 240), progress=None) -> int:
     before = psnr(result.blurred, sharp, border=border)
     after = psnr(result.image, sharp, border=border)
     picture = output / "demo.png"
-    write_png(picture, side_by_side([result.blurred, result.image, sharp]), bit_depth=8)
+    # The scene holds linear values; the picture is sRGB-encoded for viewing.
+    panel = side_by_side([result.blurred, result.image, sharp])
+    write_png(picture, linear_to_srgb(panel), bit_depth=8)
     print(
         f"scene: {DEMO_SCENE}, {size[0]}x{size[1]}, motion from {settings.motion_source}, "
         f"{settings.kernels} kernels"
