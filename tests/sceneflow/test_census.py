@@ -1,0 +1,66 @@
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from stereodeblur.sceneflow.census import NUM_OFFSETS, OFFSETS, census_cost, census_transform
+
+
+def _texture(shape=(40, 50), seed=0):
+    rng = np.random.default_rng(seed)
+    t = ndimage.gaussian_filter(rng.random(shape), 1.0)
+    return (t - t.min()) / (t.max() - t.min())
+
+
+def test_offsets_are_a_checkerboard_of_the_7x7_window():
+    assert NUM_OFFSETS == 24
+    assert np.all(np.abs(OFFSETS) <= 3)
+    assert np.all((OFFSETS.sum(axis=1) % 2) == 1)
+
+
+def test_codes_match_a_direct_ternary_comparison():
+    image = _texture()
+    codes = census_transform(image, threshold=0.01)
+    padded = np.pad(image, 3, mode="edge")
+    y, x = 20, 17
+    expected = 0
+    for k, (dx, dy) in enumerate(OFFSETS):
+        diff = padded[y + 3 + dy, x + 3 + dx] - padded[y + 3, x + 3]
+        expected |= (1 if diff > 0.01 else 2 if diff < -0.01 else 0) << (2 * k)
+    assert int(codes[y, x]) == expected
+
+
+def test_gain_and_bias_leave_codes_unchanged():
+    image = _texture()
+    a = census_transform(image, threshold=0.004)
+    b = census_transform(0.5 * image + 0.2, threshold=0.002)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_cost_is_zero_at_the_true_shift_and_not_elsewhere():
+    image = _texture((40, 60))
+    shifted = np.roll(image, 3, axis=1)  # content moves 3 px right
+    a, b = census_transform(image), census_transform(shifted)
+    y, x = np.mgrid[5:35, 8:50]
+    x, y = x.ravel(), y.ravel()
+    right = census_cost(a, b, x, y, x + 3.0, y.astype(float))
+    wrong = census_cost(a, b, x, y, x + 1.0, y.astype(float))
+    assert np.all(right == 0)
+    assert np.mean(wrong) > 0.3
+
+
+def test_cost_interpolates_between_pixels_and_is_nan_outside():
+    image = _texture()
+    codes = census_transform(image)
+    x, y = np.array([10]), np.array([10])
+    c0 = census_cost(codes, codes, x, y, np.array([10.0]), np.array([10.0]))
+    c1 = census_cost(codes, codes, x, y, np.array([11.0]), np.array([10.0]))
+    half = census_cost(codes, codes, x, y, np.array([10.5]), np.array([10.0]))
+    assert c0[0] == 0
+    assert half[0] == pytest.approx(0.5 * (c0[0] + c1[0]))
+    out = census_cost(codes, codes, x, y, np.array([-0.5]), np.array([10.0]))
+    assert np.isnan(out[0])
+
+
+def test_rejects_colour_images():
+    with pytest.raises(ValueError, match="grey"):
+        census_transform(np.zeros((4, 4, 3)))

@@ -1,0 +1,74 @@
+import itertools
+
+import numpy as np
+import pytest
+
+from stereodeblur.sceneflow.fusion import alpha_expansion, energy
+
+
+def _chain_problem(num_nodes, num_labels, seed):
+    """Random unary costs, Potts-like truncated-L1 metric on label values, on a chain + chords."""
+    rng = np.random.default_rng(seed)
+    D = rng.uniform(0, 10, (num_nodes, num_labels))
+    edges = [(i, i + 1) for i in range(num_nodes - 1)] + [(0, num_nodes - 1), (1, 4)]
+    edges = np.array(sorted({tuple(sorted(e)) for e in edges}), dtype=np.int64)
+    values = rng.uniform(0, 5, num_labels)  # each label's "position"
+    weights = rng.uniform(0.5, 3, len(edges))
+    metric = np.minimum(np.abs(values[:, None] - values[None, :]), 2.0)
+    V = weights[:, None, None] * metric[None]
+    candidates = np.tile(np.arange(num_labels), (num_nodes, 1))
+    return D, V, edges, candidates
+
+
+def _brute_force(D, V, edges):
+    best = np.inf
+    for labelling in itertools.product(range(D.shape[1]), repeat=D.shape[0]):
+        best = min(best, energy(D, V, edges, np.array(labelling)))
+    return best
+
+
+def test_two_labels_give_the_global_optimum():
+    for seed in range(5):
+        D, V, edges, cands = _chain_problem(8, 2, seed)
+        result = alpha_expansion(D, V, edges, cands, np.zeros(8, dtype=np.int64), seed=seed)
+        assert result.energy == pytest.approx(_brute_force(D, V, edges))
+
+
+def test_multi_label_result_is_within_the_expansion_bound_and_a_local_minimum():
+    for seed in range(3):
+        D, V, edges, cands = _chain_problem(7, 3, seed)
+        init = np.zeros(7, dtype=np.int64)
+        result = alpha_expansion(D, V, edges, cands, init, seed=seed)
+        assert all(
+            a >= b - 1e-9 for a, b in zip(result.history[:-1], result.history[1:], strict=True)
+        )
+        assert result.energy == pytest.approx(energy(D, V, edges, result.choice))
+        optimum = _brute_force(D, V, edges)
+        metric = V / np.maximum(V.max(axis=(1, 2), keepdims=True), 1e-12)
+        positive = metric[metric > 0]
+        bound = 2 * metric.max() / positive.min()
+        assert optimum - 1e-9 <= result.energy <= bound * optimum + 1e-9
+        # No single expansion move improves the result.
+        for alpha in range(3):
+            for subset in itertools.product([0, 1], repeat=7):
+                trial = np.where(np.array(subset) == 1, alpha, result.choice)
+                assert energy(D, V, edges, trial) >= result.energy - 1e-9
+
+
+def test_labels_outside_a_segments_candidates_are_never_chosen():
+    D, V, edges, cands = _chain_problem(6, 3, 0)
+    cands = cands.copy()
+    cands[2] = [0, -1, -1]  # segment 2 may only take label 0
+    D = np.where(cands >= 0, D, np.inf)
+    D[2, 0] = 100.0  # expensive, but the only option
+    result = alpha_expansion(D, V, edges, cands, np.zeros(6, dtype=np.int64))
+    assert result.choice[2] == 0
+    assert np.all(cands[np.arange(6), result.choice] >= 0)
+
+
+def test_init_on_an_empty_slot_is_rejected():
+    D, V, edges, cands = _chain_problem(4, 2, 0)
+    cands = cands.copy()
+    cands[1, 1] = -1
+    with pytest.raises(ValueError, match="init"):
+        alpha_expansion(D, V, edges, cands, np.array([0, 1, 0, 0]))
