@@ -6,7 +6,6 @@ Bad input is reported as one line on stderr with exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -84,7 +83,31 @@ def _add_deblur_options(p: argparse.ArgumentParser) -> None:
         help="where the motion comes from (default: %(default)s)",
     )
     g.add_argument("--samples", type=int, default=70, help="time samples per exposure (paper: 70)")
-    g.add_argument("--alpha", type=float, default=1e-3, help="prior weight (paper: 0.001)")
+    g.add_argument(
+        "--alpha",
+        type=_alpha,
+        default="auto",
+        help="prior weight, or 'auto': from the input's noise level (default; paper: 0.001)",
+    )
+    w = g.add_mutually_exclusive_group()
+    w.add_argument(
+        "--boundary-weights",
+        choices=["adaptive", "paper"],
+        default="adaptive",
+        help="motion-boundary data weights: adaptive (default) or Eq. 5 as published",
+    )
+    w.add_argument(
+        "--no-boundary-weights",
+        dest="boundary_weights",
+        action="store_const",
+        const="none",
+        help="no motion-boundary weights (w = 1)",
+    )
+    g.add_argument(
+        "--boundary-mask",
+        choices=["gt"],
+        help="gt: give the scene's gt/mixed pixels weight 0 (the paper's masked experiment)",
+    )
     g.add_argument("--irls", type=int, default=10, help="IRLS iterations (paper: 10)")
     g.add_argument("--cg", type=int, default=25, help="CG steps per IRLS iteration (paper: 25)")
     g.add_argument(
@@ -93,6 +116,19 @@ def _add_deblur_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="superpixels (default: 1200 at 640x480, scaled with area)",
     )
+
+
+def _alpha(text: str):
+    """``--alpha``: 'auto' or a positive number."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
 
 
 def _default_motion_source() -> str:
@@ -112,43 +148,119 @@ def _settings(args):
         num_irls=args.irls,
         num_cg=args.cg,
         num_segments=args.segments,
+        boundary_weights=args.boundary_weights,
+        boundary_mask=args.boundary_mask,
     )
 
 
+def _source_spec(args, *, require_exposure: bool = True):
+    from .io.sources import SourceSpec
+
+    return SourceSpec.from_arguments(
+        args.source,
+        calib=args.calib,
+        exposure=args.exposure,
+        frame_rate=args.frame_rate,
+        color=args.color,
+        sequence=args.sequence,
+        require_exposure=require_exposure,
+    )
+
+
+def _add_source_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("input (scene folder, KITTI folder, or LEFT_VIDEO RIGHT_VIDEO)")
+    g.add_argument("--calib", help="stereo calibration of a video pair: OpenCV YAML or camera.json")
+    g.add_argument("--exposure", type=float, help="exposure in seconds (if the input has none)")
+    g.add_argument("--frame-rate", type=float, help="frames per second (if the input has none)")
+    g.add_argument(
+        "--color",
+        choices=["linear", "srgb"],
+        help="encoding of the input's values (default: the input's, else linear)",
+    )
+    g.add_argument("--sequence", help="KITTI 2012/2015 sequence number, e.g. 5 or 000005")
+
+
 def cmd_deblur(args) -> int:
-    from .io.scene import SceneWriter, open_scene
-    from .pipeline import deblur_frame
+    from .clip import deblur_clip
+
+    settings = _settings(args)
+    spec = _source_spec(args)
+    source = spec.open()
+    frames = None if args.frames is None else parse_frames(args.frames, source.num_frames)
+    views = ["left", "right"] if args.views == "both" else [args.views]
+    report = deblur_clip(
+        spec,
+        args.output,
+        frames=frames,
+        views=views,
+        settings=settings,
+        overwrite=args.overwrite,
+        point_cloud=args.point_cloud,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+        command=sys.argv,
+    )
+    failed = report.failed
+    if failed:
+        first = failed[0]
+        print(
+            f"stereodeblur: error: {len(failed)} of {len(report.records)} frame(s) failed "
+            f"(first: frame {first.index} {first.view}: {first.error}); see {report.log}",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE if all(r.input_error for r in failed) else 1
+    skipped = f", {len(report.skipped)} already done" if report.skipped else ""
+    print(f"wrote {report.done} frame(s) to {report.output}{skipped}")
+    return 0
+
+
+def cmd_synth_average(args) -> int:
+    from .synth.average import average_clip
 
     say = Progress(args.quiet)
-    settings = _settings(args)
-    scene = open_scene(args.scene)
-    frames = parse_frames(args.frames, scene.num_frames)
-    if args.frames is None and settings.motion_source == "gt":
-        frames = [i for i in frames if scene.has_gt("flow", "left", i)]
-        if not frames:
-            raise InputError(f"--motion-source gt: {args.scene} has no gt/flow/left/*.flo")
-    views = ["left", "right"] if args.views == "both" else [args.views]
-    output = Path(args.output)
-    created = not output.exists()
-    writer = SceneWriter(output, scene.info, overwrite=args.overwrite, protect=[scene.root])
-    total = len(frames) * len(views)
-    done = 0
-    try:
-        for index in frames:
-            for view in views:
-                result = deblur_frame(scene, index, view=view, settings=settings, progress=say)
-                writer.write_frame(view, index, result.image)
-                done += 1
-                t = result.timings
-                say(
-                    f"frame {index} {view} written ({done}/{total}): motion {t['motion']:.1f} s, "
-                    f"operator {t['operator']:.1f} s, deconvolution {t['deconvolution']:.1f} s"
-                )
-    except BaseException:
-        if created and done == 0:  # leave nothing half-written behind
-            shutil.rmtree(output, ignore_errors=True)
-        raise
-    print(f"wrote {done} frame(s) to {writer.root}")
+    source = _source_spec(args, require_exposure=False).open()
+    protect = list(getattr(source, "paths", [])) or [source.root]
+    root = average_clip(
+        source,
+        args.output,
+        window=args.window,
+        stride=args.stride,
+        overwrite=args.overwrite,
+        protect=protect,
+        progress=say,
+    )
+    print(f"wrote {root}")
+    return 0
+
+
+def cmd_render_view(args) -> int:
+    import numpy as np
+
+    from .io.formats import write_png
+    from .pointcloud import parse_vector, read_ply, render_view
+
+    cloud = read_ply(args.cloud)
+    size = parse_size(args.size) if args.size else None
+    K = None
+    if args.focal is not None:
+        if size is None and cloud.size is None:
+            raise InputError("--focal needs --size: the point cloud states no image size")
+        w, h = size or cloud.size
+        K = np.array([[args.focal, 0, (w - 1) / 2], [0, args.focal, (h - 1) / 2], [0, 0, 1]])
+    rendered = render_view(
+        cloud,
+        rotation=np.deg2rad(parse_vector(args.rotate, "--rotate")),
+        translation=parse_vector(args.shift, "--shift"),
+        K=K,
+        size=size,
+        colors=args.colors or ("deblurred" if cloud.blurred_colors is None else "both"),
+    )
+    write_png(args.output, rendered.image, bit_depth=8)
+    print(
+        f"wrote {args.output}: {len(cloud)} points, {100 * rendered.mask.mean():.1f} % of "
+        "pixels covered"
+    )
     return 0
 
 
@@ -159,6 +271,19 @@ def cmd_synth(args) -> int:
     size = parse_size(args.size)
     names = args.scenes.split(",") if args.scenes else None
     roots = write_planar_set(args.output, size=size, names=names, progress=say)
+    print(f"wrote {len(roots)} scene(s) to {args.output}")
+    return 0
+
+
+def cmd_synth_objects(args) -> int:
+    from .synth.objects import write_object_set
+
+    say = Progress(args.quiet)
+    size = parse_size(args.size)
+    names = args.scenes.split(",") if args.scenes else None
+    roots = write_object_set(
+        args.output, size=size, names=names, noise_variants=not args.no_noisy, progress=say
+    )
     print(f"wrote {len(roots)} scene(s) to {args.output}")
     return 0
 
@@ -189,14 +314,22 @@ def cmd_sceneflow(args) -> int:
     )
     written = write_sceneflow_outputs(args.output, estimate.sceneflow, index)
     print(f"scene flow of frame {index} -> {neighbour} written to {args.output}")
-    for path in written if isinstance(written, list | tuple) else []:
+    for path in written.values():
         print(f"  {path}")
     return 0
+
+
+def cmd_kernels(args) -> int:
+    from .evaluation.kernels_figure import main as kernels_main
+
+    return kernels_main(args)
 
 
 def cmd_bench(args) -> int:
     if args.suite == "planar":
         from .evaluation.planar_bench import main as bench_main
+    elif args.suite == "paper":
+        from .evaluation.paper_bench import main as bench_main
     else:
         from .evaluation.sceneflow_bench import main as bench_main
     return bench_main(args)
@@ -218,12 +351,37 @@ def build_parser() -> argparse.ArgumentParser:
             "Deblur frames of a scene folder (stereo-video/1 format) and write them as a scene."
         ),
     )
-    p.add_argument("scene", help="input scene folder")
+    p.add_argument(
+        "source",
+        nargs="+",
+        help="input: a scene folder, a KITTI folder, or two videos LEFT RIGHT (with --calib)",
+    )
     p.add_argument("-o", "--output", required=True, help="output scene folder")
-    p.add_argument("--frames", help="frames to deblur: '1,3', '2:10' (default: all)")
-    p.add_argument("--views", choices=["left", "right", "both"], default="left")
-    p.add_argument("--overwrite", action="store_true", help="allow writing into a non-empty folder")
+    p.add_argument("--frames", help="frames to deblur: '1,3', '10:200' (default: all)")
+    p.add_argument("--views", choices=["left", "right", "both"], default="both")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="deblur finished frames again; allow writing into a folder of another scene",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument(
+        "--point-cloud",
+        action="store_true",
+        help="also write a coloured PLY per frame (OUT/pointcloud/VIEW/NNNNNN.ply)",
+    )
+    r = p.add_argument_group("running")
+    r.add_argument(
+        "--workers",
+        type=int,
+        help="local worker processes (default: one per core, as memory allows; 1: in process)",
+    )
+    r.add_argument(
+        "--scheduler",
+        help="address of a Dask distributed scheduler, tcp://HOST:PORT (needs stereodeblur[dask]); "
+        "input and output paths must be shared with its workers",
+    )
+    _add_source_options(p)
     _add_deblur_options(p)
     p.set_defaults(func=cmd_deblur)
 
@@ -273,6 +431,69 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--scenes", help="comma-separated motion names (default: all)")
     q.add_argument("-q", "--quiet", action="store_true")
     q.set_defaults(func=cmd_synth)
+    q = synth.add_parser(
+        "objects",
+        help="moving spheres, boxes, planes and a cylinder before a background",
+        description="Several textured objects with independent rigid motions in front of a "
+        "textured background (the paper's ray-traced scenes), each also with sensor noise "
+        "(sigma = 0.01) as NAME_noisy.",
+    )
+    q.add_argument("output", help="folder to write one scene per name into")
+    q.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default: %(default)s)")
+    q.add_argument("--scenes", help="comma-separated scene names (default: all)")
+    q.add_argument("--no-noisy", action="store_true", help="skip the NAME_noisy variants")
+    q.add_argument("-q", "--quiet", action="store_true")
+    q.set_defaults(func=cmd_synth_objects)
+    q = synth.add_parser(
+        "average",
+        help="blurred benchmark from sharp high-frame-rate footage",
+        description="Average --window consecutive sharp frames of a fast stereo clip into each "
+        "blurred frame of a new scene; the centre frame is stored as gt/sharp.",
+    )
+    q.add_argument(
+        "source", nargs="+", help="sharp clip: scene or KITTI folder, or two videos LEFT RIGHT"
+    )
+    q.add_argument("output", help="output scene folder")
+    q.add_argument("--window", type=int, required=True, help="frames per blurred frame (odd)")
+    q.add_argument("--stride", type=int, help="source frames between blurred frames (default: K)")
+    q.add_argument("--overwrite", action="store_true", help="allow writing into another scene")
+    q.add_argument("-q", "--quiet", action="store_true")
+    _add_source_options(q)
+    q.set_defaults(func=cmd_synth_average)
+
+    p = sub.add_parser(
+        "render-view",
+        help="render a point cloud (--point-cloud output) from a shifted viewpoint",
+        description="Render a PLY point cloud written by 'deblur --point-cloud' from a camera "
+        "moved by --shift and turned by --rotate; '--colors both' puts deblurred and blurred "
+        "colours side by side.",
+    )
+    p.add_argument("cloud", help="PLY file")
+    p.add_argument("-o", "--output", required=True, help="output PNG")
+    p.add_argument("--shift", default="0,0,0", help="camera centre X,Y,Z in scene units")
+    p.add_argument("--rotate", default="0,0,0", help="camera rotation vector in degrees")
+    p.add_argument(
+        "--colors",
+        choices=["deblurred", "blurred", "both"],
+        help="which colours (default: both side by side when the cloud has blurred ones)",
+    )
+    p.add_argument("--size", help="WIDTHxHEIGHT (default: the frame's)")
+    p.add_argument("--focal", type=float, help="focal length in pixels (default: the frame's)")
+    p.set_defaults(func=cmd_render_view)
+
+    p = sub.add_parser(
+        "kernels",
+        help="picture of homography- vs flow-induced blur kernels (paper Fig. 3)",
+        description="Blur kernels of a yawing plane at a grid of pixels: from 3D homographies, "
+        "from the 2D flow (displacement model), and their difference, side by side as a PNG.",
+    )
+    p.add_argument("-o", "--output", required=True, help="output PNG")
+    p.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default: %(default)s)")
+    p.add_argument(
+        "--yaw", type=float, default=0.3, help="radians per frame interval (default: %(default)s)"
+    )
+    p.add_argument("--depth", type=float, default=3.0, help="plane distance in metres")
+    p.set_defaults(func=cmd_kernels)
 
     p = sub.add_parser(
         "bench",
@@ -291,6 +512,45 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--work", default="bench-planar", help="folder for rendered scenes and results")
     q.add_argument("-q", "--quiet", action="store_true")
     q.set_defaults(func=cmd_bench)
+    q = bench.add_parser(
+        "sceneflow",
+        help="scene-flow accuracy (ADE, AEP, rigid-motion error) and speed",
+        description="Scene-flow accuracy on the synthetic scenes (inputs blurred) and the "
+        "Middlebury motorcycle pair as a static clip.",
+    )
+    q.add_argument("--sizes", default="640x480", help="comma-separated WIDTHxHEIGHT")
+    q.add_argument("--scenes", help="comma-separated planar motion names (default: all)")
+    q.add_argument("--frame", type=int, default=1, help="frame whose motion is estimated")
+    q.add_argument("--work", default="bench-sceneflow", help="folder for scenes and results")
+    q.add_argument("--no-motorcycle", action="store_true", help="skip the motorcycle check")
+    q.add_argument("-q", "--quiet", action="store_true")
+    q.set_defaults(func=cmd_bench)
+    q = bench.add_parser(
+        "paper",
+        help="paper Tables 2-4 on the object and planar scenes, noiseless and noisy",
+        description="Deblur frame 1 of every scene with each column of the paper's Tables 2-4 "
+        "(gt 2D displacement, initial optical flow, 2D projection of the scene flow, "
+        "3D homographies, paper full, ours full); PSNR, SSIM, AEP, ADE as Markdown and JSON, "
+        "a figure per scene. Resumable: results are cached in the work folder.",
+    )
+    q.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default: %(default)s)")
+    q.add_argument(
+        "--scenes", help="comma-separated scene names, NAME or NAME_noisy (default: all)"
+    )
+    q.add_argument("--work", default="bench-paper", help="folder for scenes, cache and results")
+    q.add_argument(
+        "--alpha-sweep", action="store_true", help="also run ours (full) at 5 fixed alphas"
+    )
+    q.add_argument("--no-masked", action="store_true", help="skip Table 2 (gt-masked columns)")
+    q.add_argument("--samples", type=int, default=70, help="time samples per exposure (70)")
+    q.add_argument("--irls", type=int, default=10, help="IRLS iterations (paper: 10)")
+    q.add_argument("--cg", type=int, default=25, help="CG steps per IRLS iteration (paper: 25)")
+    q.add_argument("--segments", type=int, default=None, help="superpixels of the scene flow")
+    q.add_argument(
+        "--render-samples", type=int, default=48, help="instants averaged per rendered frame"
+    )
+    q.add_argument("-q", "--quiet", action="store_true")
+    q.set_defaults(func=cmd_bench, argv=None)
     return parser
 
 

@@ -32,6 +32,10 @@ from .sceneflow.model import SceneFlow
 
 KERNELS = ("homography", "displacement")
 MOTION_SOURCES = ("gt", "sceneflow", "initial-flow")
+BOUNDARY_WEIGHTS = ("adaptive", "paper", "none")
+BOUNDARY_MASKS = (None, "gt")
+PAPER_ALPHA = 1e-3
+"""The paper's prior weight (Eq. 6)."""
 
 
 @dataclass(frozen=True)
@@ -46,21 +50,37 @@ class DeblurSettings:
     motion_source : {'gt', 'sceneflow', 'initial-flow'}
     num_samples : int
         Time samples over the exposure (paper: N = 70).
-    alpha, num_irls, num_cg : float, int, int
-        Prior weight (Eq. 6) and iteration counts (paper: 0.001, 10, 25).
+    alpha : float or 'auto'
+        Prior weight of Eq. 6; ``'auto'`` (default) sets it from the noise level of the
+        blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`); the paper's is
+        0.001 (:data:`PAPER_ALPHA`).
+    num_irls, num_cg : int
+        Iteration counts (paper: 10, 25).
     num_segments : int or None
         Superpixels of the scene flow; None scales 1200 at 640x480 with image area.
     seed : int
+    boundary_weights : {'adaptive', 'paper', 'none'}
+        Motion-boundary data weights (Sec. 3, Eq. 5), updated every IRLS iteration:
+        ``'adaptive'`` (default) :class:`~stereodeblur.deconv.weights.AdaptiveWeights`
+        started from a band around the scene flow's motion boundaries and occlusions;
+        ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`)
+        started from the scene flow's occlusion mask; ``'none'`` ``w = 1``. Without a scene
+        flow (displacement kernels from optical flow) the weights start at 1.
+    boundary_mask : {None, 'gt'}
+        ``'gt'``: the scene's gt/mixed pixels get weight 0 throughout (the paper's
+        masked experiment, Table 2), on top of ``boundary_weights``.
     """
 
     kernels: str = "homography"
     motion_source: str = "gt"
     num_samples: int = 70
-    alpha: float = 1e-3
+    alpha: float | str = "auto"
     num_irls: int = 10
     num_cg: int = 25
     num_segments: int | None = None
     seed: int = 0
+    boundary_weights: str = "adaptive"
+    boundary_mask: str | None = None
 
     def __post_init__(self):
         if self.kernels not in KERNELS:
@@ -74,8 +94,18 @@ class DeblurSettings:
             raise InputError("--motion-source initial-flow needs --kernels displacement")
         if self.num_samples < 1:
             raise InputError(f"num_samples must be >= 1, got {self.num_samples}")
-        if not self.alpha > 0:
-            raise InputError(f"alpha must be positive, got {self.alpha}")
+        if self.alpha != "auto":
+            if isinstance(self.alpha, str | bool) or not (
+                np.isfinite(self.alpha) and self.alpha > 0
+            ):
+                raise InputError(f"alpha must be 'auto' or a positive number, got {self.alpha!r}")
+        if self.boundary_weights not in BOUNDARY_WEIGHTS:
+            raise InputError(
+                f"boundary weights must be one of {', '.join(BOUNDARY_WEIGHTS)}, "
+                f"got {self.boundary_weights!r}"
+            )
+        if self.boundary_mask not in BOUNDARY_MASKS:
+            raise InputError(f"boundary mask must be 'gt' or None, got {self.boundary_mask!r}")
 
 
 @dataclass(frozen=True)
@@ -97,7 +127,12 @@ class FrameMotion:
 
 @dataclass(frozen=True)
 class FrameResult:
-    """A deblurred frame with what produced it."""
+    """A deblurred frame with what produced it.
+
+    ``alpha`` is the prior weight used; ``weight_steps`` the boundary-weight updates
+    (:class:`~stereodeblur.deconv.weights.WeightsStep`: weights and the residual norm
+    they came from, per IRLS iteration), empty with fixed weights.
+    """
 
     index: int
     view: str
@@ -105,6 +140,8 @@ class FrameResult:
     result: DeblurResult
     motion: FrameMotion
     timings: dict = field(default_factory=dict)
+    alpha: float | None = None
+    weight_steps: tuple = ()
 
     @property
     def image(self) -> np.ndarray:
@@ -247,6 +284,70 @@ def build_operator(motion: FrameMotion, exposure: Exposure, settings: DeblurSett
     return displacement_blur(forward, backward, exposure, num_samples=settings.num_samples)
 
 
+def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray) -> float:
+    """The prior weight of a run: ``settings.alpha``, or :func:`auto_alpha` of ``blurred``."""
+    if settings.alpha == "auto":
+        from .deconv.noise import auto_alpha
+
+        return auto_alpha(blurred)
+    return float(settings.alpha)
+
+
+class _MaskedUpdate:
+    """A weight update whose result is multiplied by a fixed 0/1 mask."""
+
+    def __init__(self, update, mask):
+        self.update, self.mask = update, mask
+
+    def __call__(self, n, blurred, residual, estimate, weights):
+        return self.update(n, blurred, residual, estimate, weights) * self.mask
+
+
+def boundary_weighting(
+    scene, index: int, view: str, settings: DeblurSettings, motion: FrameMotion, exposure
+):
+    """Initial data weights and the weight update (or None) of a run (see DeblurSettings).
+
+    Returns
+    -------
+    weights : ndarray, float32, shape (H, W)
+        ``w_0``.
+    update : callable or None
+        For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
+        (a masked update in ``.update.history``).
+    """
+    from .deconv.weights import (
+        AdaptiveWeights,
+        PaperWeights,
+        boundary_band_width,
+        initial_weights_from_occlusion,
+        motion_boundary_band,
+    )
+
+    sf = motion.sceneflow
+    shape = tuple(motion.flow_forward.shape[:2]) if sf is None else sf.shape
+    weights = np.ones(shape, np.float32)
+    update = None
+    if settings.boundary_weights == "paper":
+        update = PaperWeights()
+        if sf is not None:
+            weights = initial_weights_from_occlusion(sf.occlusion)
+    elif settings.boundary_weights == "adaptive":
+        update = AdaptiveWeights()
+        if sf is not None:
+            band = motion_boundary_band(sf, boundary_band_width(sf, exposure))
+            weights = initial_weights_from_occlusion(band)
+    if settings.boundary_mask == "gt":
+        if not (hasattr(scene, "has_gt") and scene.has_gt("mixed", view, index)):
+            where = scene.gt_path("mixed", view, index) if hasattr(scene, "gt_path") else "gt/"
+            raise InputError(f"--boundary-mask gt needs {where}, which is missing")
+        keep = initial_weights_from_occlusion(scene.read_gt_mixed(view, index))
+        weights = weights * keep
+        if update is not None:
+            update = _MaskedUpdate(update, keep)
+    return weights, update
+
+
 def deblur_frame(
     scene,
     index: int,
@@ -254,9 +355,14 @@ def deblur_frame(
     view: str = "left",
     settings: DeblurSettings | None = None,
     weights: np.ndarray | None = None,
+    motion: FrameMotion | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> FrameResult:
-    """Deblur frame ``index`` of ``view`` of an open scene."""
+    """Deblur frame ``index`` of ``view`` of an open scene.
+
+    ``weights`` replaces the initial data weights chosen by ``settings``; ``motion``
+    (from :func:`frame_motion` with the same settings) skips the motion estimation.
+    """
     settings = settings or DeblurSettings()
     say = progress or (lambda message: None)
     if not 0 <= index < scene.num_frames:
@@ -264,22 +370,27 @@ def deblur_frame(
     timings = {}
     t0 = time.perf_counter()
     blurred = scene.read_frame(view, index)
-    say(f"frame {index} {view}: motion ({settings.motion_source})")
-    motion = frame_motion(scene, index, view, settings, blurred)
+    if motion is None:
+        say(f"frame {index} {view}: motion ({settings.motion_source})")
+        motion = frame_motion(scene, index, view, settings, blurred)
     timings["motion"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"frame {index} {view}: blur operator ({settings.kernels})")
     operator = build_operator(motion, scene.info.exposure, settings)
     timings["operator"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    alpha = resolve_alpha(settings, blurred)
+    initial, update = boundary_weighting(scene, index, view, settings, motion, scene.info.exposure)
     result = deblur_irls(
         blurred,
         operator,
-        weights=weights,
-        alpha=settings.alpha,
+        weights=initial if weights is None else weights,
+        alpha=alpha,
         num_irls=settings.num_irls,
         num_cg=settings.num_cg,
+        update_weights=update,
         progress=lambda n, total: say(f"frame {index} {view}: IRLS {n}/{total}"),
     )
     timings["deconvolution"] = time.perf_counter() - t0
-    return FrameResult(index, view, blurred, result, motion, timings)
+    steps = tuple(getattr(getattr(update, "update", update), "history", ()))
+    return FrameResult(index, view, blurred, result, motion, timings, alpha, steps)

@@ -60,3 +60,13 @@ def test_superpixels_count():
     labels = superpixels(img, 48)
     assert labels.min() == 0 and labels.max() + 1 == len(np.unique(labels))
     assert 20 <= labels.max() + 1 <= 100
+
+
+def test_unknown_flow_is_occluded_not_an_error():
+    truth = _truth()
+    flow = truth.flow()
+    flow[10:20, 10:20] = np.nan
+    labels = (np.arange(80)[None, :] // 10).repeat(60, 0).astype(np.int32)
+    fitted = sceneflow_from_gt(CAMERA, truth.disparity(), _next_disparity_map(truth), flow, labels)
+    assert fitted.occlusion[10:20, 10:20].all()
+    assert np.all(np.isfinite(fitted.twists))

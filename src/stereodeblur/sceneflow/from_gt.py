@@ -56,11 +56,13 @@ def _sample_smooth(
             np.abs(pad[:-2, 1:-1] - 2 * image + pad[2:, 1:-1]),
         )
     bad = ~(bend <= max_bend)
+    known = np.isfinite(x) & np.isfinite(y)  # unknown flow gives unknown positions
+    x, y = np.where(known, x, 0.0), np.where(known, y, 0.0)
     x0 = np.clip(np.floor(x).astype(int), 0, W - 2)
     y0 = np.clip(np.floor(y).astype(int), 0, H - 2)
     near_bad = bad[y0, x0] | bad[y0, x0 + 1] | bad[y0 + 1, x0] | bad[y0 + 1, x0 + 1]
     out = ndimage.map_coordinates(np.nan_to_num(image), [y, x], order=1, mode="nearest")
-    return np.where(near_bad, np.nan, out)
+    return np.where(near_bad | ~known, np.nan, out)
 
 
 def sceneflow_from_gt(

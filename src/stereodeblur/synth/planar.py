@@ -36,7 +36,9 @@ colour ``"linear"``, plus ``gt/objects.json``::
 coordinates; a point ``P`` of the object at that instant is at ``R P + T``,
 ``[R, T] = exp(s * twist)``, ``s`` frame intervals later (see
 :mod:`stereodeblur.geometry.rigid`). ``id`` is the object index used by the
-renderer (the value of its object-id maps).
+renderer (the value of its object-id maps). Solids (spheres, cylinders, boxes of
+:mod:`stereodeblur.synth.objects`) are written with ``"kind"``, ``"center"``,
+``"frame"`` and their sizes instead of ``"normal"`` (see their ``describe``).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ from .render import (
     RenderedScene,
     SceneSetup,
     cast_rays,
+    describe_object,
     intersect_plane,
     render_scene,
     track,
@@ -435,16 +438,7 @@ def write_rendered_scene(
     for i, flow in enumerate(scene.flow):
         writer.write_gt_flow("left", i, flow)
     objects = {
-        "objects": [
-            {
-                "id": k,
-                "name": obj.name,
-                "normal": [float(c) for c in obj.normal],
-                "twist": [float(c) for c in obj.twist],
-                "texture": obj.texture_name,
-            }
-            for k, obj in enumerate(scene.objects)
-        ],
+        "objects": [describe_object(k, obj) for k, obj in enumerate(scene.objects)],
         "frame_rate": scene.exposure.frame_rate,
         "reference": "frame 0 centre",
     }

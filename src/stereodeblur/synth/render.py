@@ -30,6 +30,14 @@ Texture
     integer ``(u, v) = (col, row)``), looked up with bilinear interpolation. An
     unbounded object is an infinite plane whose texture repeats its edge texels; a
     bounded one is only the rectangle its texture covers.
+Solids
+    :class:`SphereObject`, :class:`CylinderObject` and :class:`BoxObject` are given
+    in a local frame: the reference-pose point is ``P = center + frame @ q`` for local
+    coordinates ``q`` (``frame``'s columns are the local axes, a rotation). Their
+    rays are intersected exactly (ray-quadric, ray-slab) in local coordinates;
+    textures wrap by spherical, cylindrical or per-face planar coordinates (see each
+    class). Sphere and cylinder textures should be periodic along ``u`` (first column
+    equal to the last, :func:`periodic_texture`) for a seamless wrap.
 """
 
 from __future__ import annotations
@@ -132,6 +140,356 @@ class PlanarObject:
         A = self.axes / self.texel_size
         b = np.array([(w - 1) / 2, (h - 1) / 2]) - A @ self.origin
         return A, b
+
+    def describe(self) -> dict:
+        """The object for ``gt/objects.json``: name, texture, plane and twist."""
+        return {
+            "name": self.name,
+            "normal": [float(c) for c in self.normal],
+            "twist": [float(c) for c in self.twist],
+            "texture": self.texture_name,
+        }
+
+
+def periodic_texture(texture: np.ndarray) -> np.ndarray:
+    """``texture`` followed by its mirror image and its first column again, along ``u``.
+
+    The result, of width ``2 w + 1``, is continuous when wrapped around (its first and
+    last columns are equal), for spheres and cylinders.
+    """
+    texture = np.asarray(texture, dtype=np.float32)
+    if texture.ndim != 3 or min(texture.shape[:2]) < 2:
+        raise ValueError(f"texture must have shape (h, w, C) with h, w >= 2, got {texture.shape}")
+    return np.concatenate([texture, texture[:, ::-1], texture[:, :1]], axis=1)
+
+
+def _check_frame(frame) -> np.ndarray:
+    frame = np.asarray(frame, dtype=np.float64)
+    if frame.shape != (3, 3) or not np.allclose(frame.T @ frame, np.eye(3), atol=1e-9):
+        raise ValueError(f"frame must be a 3 x 3 rotation matrix, got {frame.tolist()}")
+    if np.linalg.det(frame) < 0:
+        raise ValueError("frame must be a rotation (determinant +1), not a reflection")
+    return frame
+
+
+def _positive(value, name: str) -> float:
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return value
+
+
+class _Solid:
+    """Ray casting shared by the solids (fields ``center``, ``frame``, ``twist``, ``texture``,
+    ``name``, ``texture_name`` are the subclasses'); see the module conventions."""
+
+    def _check_common(self):
+        center = np.asarray(self.center, dtype=np.float64).reshape(-1)
+        xi = np.asarray(self.twist, dtype=np.float64).reshape(-1)
+        texture = np.asarray(self.texture, dtype=np.float32)
+        if center.shape != (3,) or not np.all(np.isfinite(center)):
+            raise ValueError(f"center must be 3 finite numbers, got {self.center!r}")
+        if xi.shape != (6,) or not np.all(np.isfinite(xi)):
+            raise ValueError(f"twist must be 6 finite numbers, got {self.twist!r}")
+        if texture.ndim != 3 or texture.shape[2] != 3 or min(texture.shape[:2]) < 2:
+            raise ValueError(
+                f"texture must have shape (h, w, 3) with h, w >= 2, got {texture.shape}"
+            )
+        object.__setattr__(self, "center", center)
+        object.__setattr__(self, "frame", _check_frame(self.frame))
+        object.__setattr__(self, "twist", xi)
+        object.__setattr__(self, "texture", texture)
+        planes = np.ascontiguousarray(np.moveaxis(texture, -1, 0).reshape(3, -1))
+        object.__setattr__(self, "_planes", planes)
+
+    def pose(self, fraction: float) -> tuple[np.ndarray, np.ndarray]:
+        """Rotation and translation ``exp(fraction * twist)`` from the reference pose."""
+        M = se3_exp(float(fraction) * self.twist)
+        return M[:3, :3], M[:3, 3]
+
+    @property
+    def bounding_radius(self) -> float:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def describe(self) -> dict:
+        """The object for ``gt/objects.json``: kind, name, texture, shape and twist."""
+        out = {"name": self.name, "kind": self.kind, "twist": [float(c) for c in self.twist]}
+        out["center"] = [float(c) for c in self.center]
+        out["frame"] = [[float(c) for c in row] for row in self.frame]
+        out.update(self._shape())
+        out["texture"] = self.texture_name
+        return out
+
+    def _screen_box(self, camera: StereoCamera, view: str, R, T, width: int, height: int):
+        """Pixel rectangle ``(x0, x1, y0, y1)`` (end exclusive) that holds the object's image.
+
+        The cube around the bounding sphere, moved to the instant, projects into the
+        convex hull of its projected corners when all of them lie in front of the
+        camera; otherwise the whole image is returned.
+        """
+        corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        points = (R @ self.center + T - camera.center(view)) + self.bounding_radius * corners
+        if np.any(points[:, 2] <= 1e-9):
+            return 0, width, 0, height
+        h = points @ camera.K.T
+        x, y = h[:, 0] / h[:, 2], h[:, 1] / h[:, 2]
+        x0 = int(np.clip(np.floor(x.min()) - 1, 0, width))
+        x1 = int(np.clip(np.ceil(x.max()) + 2, 0, width))
+        y0 = int(np.clip(np.floor(y.min()) - 1, 0, height))
+        y1 = int(np.clip(np.ceil(y.max()) + 2, 0, height))
+        return x0, x1, y0, y1
+
+    def cast(self, camera: StereoCamera, view: str, size, fraction: float, *, points: bool):
+        """Depth and texture coordinates (and reference-pose points) of every pixel's ray.
+
+        Returns ``(depth, fields)``: ``depth`` (H, W) with ``inf`` where the object is
+        missed; ``fields`` the list ``[u, v]`` (plus ``[X, Y, Z]`` with ``points``) of
+        (H, W) arrays, NaN where missed.
+        """
+        width, height = size
+        R, T = self.pose(fraction)
+        # Ray C + lam K^-1 (x, y, 1) in local coordinates: q + lam B (x, y, 1).
+        q = self.frame.T @ (R.T @ (camera.center(view) - T) - self.center)
+        B = self.frame.T @ R.T @ camera.K_inv
+        depth = np.full((height, width), np.inf)
+        fields = [np.full((height, width), np.nan) for _ in range(5 if points else 2)]
+        x0, x1, y0, y1 = self._screen_box(camera, view, R, T, width, height)
+        if x0 >= x1 or y0 >= y1:
+            return depth, fields
+        y, x = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+        rays = np.stack([x, y, np.ones_like(x)], -1) @ B.T  # (h, w, 3) local directions
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            lam, local, u, v = self._local_hits(q, rays)
+        hit = np.isfinite(lam) & (lam > 0)
+        window = (slice(y0, y1), slice(x0, x1))
+        depth[window] = np.where(hit, lam, np.inf)
+        values = [u, v]
+        if points:
+            P = local @ self.frame.T + self.center
+            values += [P[..., 0], P[..., 1], P[..., 2]]
+        for field_, value in zip(fields, values, strict=True):
+            field_[window] = np.where(hit, value, np.nan)
+        return depth, fields
+
+    def _local_hits(self, q, rays):  # pragma: no cover - overridden
+        """``(lam, local point, u, v)`` of rays ``q + lam * rays``; ``lam`` NaN or inf on a miss."""
+        raise NotImplementedError
+
+
+def _nearest_quadric_root(a, b, c):
+    """Smallest positive root of ``a lam^2 + 2 b lam + c = 0`` (``inf`` if none)."""
+    disc = b * b - a * c
+    root = np.sqrt(np.where(disc >= 0, disc, np.nan))
+    near = (-b - root) / a
+    far = (-b + root) / a
+    lam = np.where(near > 0, near, np.where(far > 0, far, np.inf))
+    return np.where(np.isfinite(lam), lam, np.inf), near, far
+
+
+@dataclass(frozen=True)
+class SphereObject(_Solid):
+    """A textured sphere moving rigidly with a constant twist.
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Centre in the reference pose, left-camera coordinates.
+    radius : float
+    frame : array_like, shape (3, 3)
+        Rotation whose columns are the local axes; the third is the pole axis.
+    twist : array_like, shape (6,)
+        Motion per frame interval, ``(v, omega)``.
+    texture : ndarray, shape (h, w, 3)
+        Linear RGB in [0, 1], periodic along ``u`` (see :func:`periodic_texture`).
+        A local point ``q`` at longitude ``phi = atan2(q_y, q_x)`` and polar angle
+        ``theta = arccos(q_z / r)`` has ``u = (phi + pi) / (2 pi) * (w - 1)`` and
+        ``v = theta / pi * (h - 1)``.
+    name, texture_name : str
+    """
+
+    center: np.ndarray
+    radius: float
+    frame: np.ndarray
+    twist: np.ndarray
+    texture: np.ndarray
+    name: str = "sphere"
+    texture_name: str = ""
+    kind = "sphere"
+
+    def __post_init__(self):
+        self._check_common()
+        object.__setattr__(self, "radius", _positive(self.radius, "radius"))
+
+    @property
+    def bounding_radius(self) -> float:
+        return self.radius
+
+    def _shape(self) -> dict:
+        return {"radius": self.radius}
+
+    def _local_hits(self, q, rays):
+        a = np.einsum("...k,...k->...", rays, rays)
+        lam, _, _ = _nearest_quadric_root(a, rays @ q, q @ q - self.radius**2)
+        local = q + np.where(np.isfinite(lam), lam, np.nan)[..., None] * rays
+        h, w = self.texture.shape[:2]
+        phi = np.arctan2(local[..., 1], local[..., 0])
+        theta = np.arccos(np.clip(local[..., 2] / self.radius, -1.0, 1.0))
+        return lam, local, (phi + np.pi) / (2 * np.pi) * (w - 1), theta / np.pi * (h - 1)
+
+
+@dataclass(frozen=True)
+class CylinderObject(_Solid):
+    """A closed textured cylinder (side and two caps) moving rigidly with a constant twist.
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Midpoint of the axis in the reference pose.
+    radius, half_height : float
+    frame : array_like, shape (3, 3)
+        Rotation whose columns are the local axes; the third is the cylinder's axis.
+    twist : array_like, shape (6,)
+    texture : ndarray, shape (h, w, 3)
+        Periodic along ``u``. The side point at angle ``phi = atan2(q_y, q_x)`` and
+        height ``q_z`` has ``u = (phi + pi) / (2 pi) * (w - 1)`` and
+        ``v = (q_z + half_height) / t``, with the texel size ``t = 2 pi r / (w - 1)``;
+        cap points have ``u = q_x / t + (w - 1) / 4``, ``v = q_y / t + (h - 1) / 2``.
+    name, texture_name : str
+    """
+
+    center: np.ndarray
+    radius: float
+    half_height: float
+    frame: np.ndarray
+    twist: np.ndarray
+    texture: np.ndarray
+    name: str = "cylinder"
+    texture_name: str = ""
+    kind = "cylinder"
+
+    def __post_init__(self):
+        self._check_common()
+        object.__setattr__(self, "radius", _positive(self.radius, "radius"))
+        object.__setattr__(self, "half_height", _positive(self.half_height, "half_height"))
+
+    @property
+    def bounding_radius(self) -> float:
+        return float(np.hypot(self.radius, self.half_height))
+
+    def _shape(self) -> dict:
+        return {"radius": self.radius, "half_height": self.half_height}
+
+    def _local_hits(self, q, rays):
+        r, hh = self.radius, self.half_height
+        bx, by, bz = rays[..., 0], rays[..., 1], rays[..., 2]
+        _, near, far = _nearest_quadric_root(
+            bx * bx + by * by, q[0] * bx + q[1] * by, q[0] ** 2 + q[1] ** 2 - r * r
+        )
+        candidates = []
+        for lam in (near, far):  # the side, within the height
+            ok = (lam > 0) & (np.abs(q[2] + lam * bz) <= hh)
+            candidates.append(np.where(ok, lam, np.inf))
+        for z in (-hh, hh):  # the caps, within the radius
+            lam = (z - q[2]) / bz
+            ok = (lam > 0) & (np.hypot(q[0] + lam * bx, q[1] + lam * by) <= r)
+            candidates.append(np.where(ok, lam, np.inf))
+        candidates = np.stack(candidates)
+        which = np.argmin(candidates, axis=0)
+        lam = np.take_along_axis(candidates, which[None], 0)[0]
+        local = q + np.where(np.isfinite(lam), lam, np.nan)[..., None] * rays
+        h, w = self.texture.shape[:2]
+        texel = 2 * np.pi * r / (w - 1)
+        phi = np.arctan2(local[..., 1], local[..., 0])
+        side = which < 2
+        u = np.where(
+            side, (phi + np.pi) / (2 * np.pi) * (w - 1), local[..., 0] / texel + (w - 1) / 4
+        )
+        v = np.where(side, (local[..., 2] + hh) / texel, local[..., 1] / texel + (h - 1) / 2)
+        return lam, local, u, v
+
+
+# Where each face of a box takes its texture window, as fractions of the slack.
+_FACE_OFFSETS = ((0.0, 0.0), (1.0, 1.0), (0.5, 0.0), (0.0, 1.0), (1.0, 0.5), (0.5, 0.5))
+
+
+@dataclass(frozen=True)
+class BoxObject(_Solid):
+    """A textured box (rectangular cuboid) moving rigidly with a constant twist.
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Centre in the reference pose.
+    half_sizes : array_like, shape (3,)
+        Half its extent along each local axis.
+    frame : array_like, shape (3, 3)
+        Rotation whose columns are the box's axes.
+    twist : array_like, shape (6,)
+    texture : ndarray, shape (h, w, 3)
+    texel_size : float
+        Side of one texel in scene units. A point of the face normal to local axis
+        ``i`` has ``u = (q_j + s_j) / texel_size + a`` and ``v = (q_k + s_k) / texel_size
+        + b`` (``j, k`` the next axes cyclically, ``s`` the half sizes); the offsets
+        ``(a, b)`` differ per face, so that faces show different parts of the texture.
+    name, texture_name : str
+    """
+
+    center: np.ndarray
+    half_sizes: np.ndarray
+    frame: np.ndarray
+    twist: np.ndarray
+    texture: np.ndarray
+    texel_size: float
+    name: str = "box"
+    texture_name: str = ""
+    kind = "box"
+
+    def __post_init__(self):
+        self._check_common()
+        half = np.asarray(self.half_sizes, dtype=np.float64).reshape(-1)
+        if half.shape != (3,) or not np.all(np.isfinite(half)) or np.any(half <= 0):
+            raise ValueError(f"half_sizes must be 3 positive numbers, got {self.half_sizes!r}")
+        object.__setattr__(self, "half_sizes", half)
+        object.__setattr__(self, "texel_size", _positive(self.texel_size, "texel_size"))
+
+    @property
+    def bounding_radius(self) -> float:
+        return float(np.linalg.norm(self.half_sizes))
+
+    def _shape(self) -> dict:
+        return {
+            "half_sizes": [float(c) for c in self.half_sizes],
+            "texel_size": self.texel_size,
+        }
+
+    def _local_hits(self, q, rays):
+        s = self.half_sizes
+        t1 = (-s - q) / rays
+        t2 = (s - q) / rays
+        entry = np.minimum(t1, t2)
+        exit_ = np.maximum(t1, t2).min(-1)
+        axis = np.argmax(np.nan_to_num(entry, nan=-np.inf), -1)
+        lam = np.take_along_axis(entry, axis[..., None], -1)[..., 0]
+        lam = np.where((lam <= exit_) & (lam > 0), lam, np.inf)
+        local = q + np.where(np.isfinite(lam), lam, np.nan)[..., None] * rays
+        h, w = self.texture.shape[:2]
+        face = 2 * axis + (np.take_along_axis(local, axis[..., None], -1)[..., 0] > 0)
+        u = np.full(lam.shape, np.nan)
+        v = np.full(lam.shape, np.nan)
+        for f, (fu, fv) in enumerate(_FACE_OFFSETS):
+            i = f // 2
+            j, k = (i + 1) % 3, (i + 2) % 3
+            on = face == f
+            slack_u = max(w - 1 - 2 * s[j] / self.texel_size, 0.0)
+            slack_v = max(h - 1 - 2 * s[k] / self.texel_size, 0.0)
+            u[on] = (local[on, j] + s[j]) / self.texel_size + fu * slack_u
+            v[on] = (local[on, k] + s[k]) / self.texel_size + fv * slack_v
+        return lam, local, u, v
+
+
+def describe_object(index: int, obj) -> dict:
+    """``{"id": index, ...}`` and the object's own :meth:`describe` for ``gt/objects.json``."""
+    return {"id": int(index), **obj.describe()}
 
 
 @dataclass(frozen=True)
@@ -294,7 +652,7 @@ def cast_rays(
 
     Parameters
     ----------
-    objects : sequence of PlanarObject
+    objects : sequence of PlanarObject, SphereObject, CylinderObject or BoxObject
     camera : StereoCamera
     view : {'left', 'right'}
     size : tuple of int
@@ -317,18 +675,21 @@ def cast_rays(
     object_id = np.full(shape, -1, dtype=np.int32)
     fields = [np.full(shape, np.nan) for _ in range(5 if points else 2)]  # u, v (, X, Y, Z)
     for k, obj in enumerate(objects):
-        numerator, g, o, A = _ray_geometry(obj.normal, obj.twist, camera, view, fraction)
-        lam = _depth(numerator, g, x, y)
-        # Texture coordinates are affine in the reference-pose point: (u, v) = B P + c.
-        B, c = obj._texture_map()
-        values = _affine_along_ray(B @ o + c, B @ A, lam, x, y)
-        if obj.bounded:
-            h, w = obj.texture.shape[:2]
-            u, v = values
-            inside = (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
-            lam = np.where(inside, lam, np.inf)
-        if points:
-            values += _affine_along_ray(o, A, lam, x, y)
+        if isinstance(obj, _Solid):
+            lam, values = obj.cast(camera, view, (width, height), fraction, points=points)
+        else:
+            numerator, g, o, A = _ray_geometry(obj.normal, obj.twist, camera, view, fraction)
+            lam = _depth(numerator, g, x, y)
+            # Texture coordinates are affine in the reference-pose point: (u, v) = B P + c.
+            B, c = obj._texture_map()
+            values = _affine_along_ray(B @ o + c, B @ A, lam, x, y)
+            if obj.bounded:
+                h, w = obj.texture.shape[:2]
+                u, v = values
+                inside = (u >= -0.5) & (u <= w - 0.5) & (v >= -0.5) & (v <= h - 0.5)
+                lam = np.where(inside, lam, np.inf)
+            if points:
+                values += _affine_along_ray(o, A, lam, x, y)
         nearer = lam < best
         if nearer.all():
             best, fields = lam, values  # full (H, W) arrays
@@ -444,7 +805,7 @@ def render_instant(
 
     Parameters
     ----------
-    objects : sequence of PlanarObject
+    objects : sequence of objects (see :func:`cast_rays`)
     camera : StereoCamera
     view : {'left', 'right'}
     size : tuple of int
@@ -506,7 +867,7 @@ class SceneSetup:
     size : tuple of int
         ``(width, height)``.
     num_frames : int
-    objects : tuple of PlanarObject
+    objects : tuple of objects (see :func:`cast_rays`)
     """
 
     name: str
@@ -514,7 +875,7 @@ class SceneSetup:
     exposure: Exposure
     size: tuple[int, int]
     num_frames: int
-    objects: tuple[PlanarObject, ...]
+    objects: tuple
 
     def __post_init__(self):
         object.__setattr__(self, "size", _check_size(self.size))
@@ -534,7 +895,7 @@ class RenderedScene:
     exposure : Exposure
     size : tuple of int
         ``(width, height)``.
-    objects : tuple of PlanarObject
+    objects : tuple of objects (see :func:`cast_rays`)
         The true objects: reference pose at the centre of frame 0 and twists.
     num_samples : int
         Instants averaged per blurred frame.
@@ -558,7 +919,7 @@ class RenderedScene:
     camera: StereoCamera
     exposure: Exposure
     size: tuple[int, int]
-    objects: tuple[PlanarObject, ...]
+    objects: tuple
     num_samples: int
     frames: dict = field(repr=False)
     sharp: dict = field(repr=False)

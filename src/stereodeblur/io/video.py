@@ -1,0 +1,237 @@
+"""A pair of rectified video files (left, right) as a stereo clip, read frame by frame.
+
+Frames are decoded on demand with :class:`cv2.VideoCapture` (FFmpeg): reading the
+next frame is sequential decoding; any other frame is a seek. At most a few
+recent frames per view stay in memory. Frame ``i`` of both videos is taken to be
+exposed at the same instant. The frame rate comes from the container (or
+``frame_rate``); the camera from a calibration file
+(:mod:`stereodeblur.io.calibration`).
+
+Lossless encodings that OpenCV writes and reads back bit-exactly (8-bit RGB):
+FFV1 (``.mkv``, ``.avi``), PNG (fourcc ``'png '``) and HuffYUV (``'HFYU'``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from .calibration import check_image_size, read_stereo_calibration
+from .sources import FrameSource, camera_info
+
+CACHE_FRAMES = 4  # decoded frames kept per view
+
+
+def _capture(path: Path) -> cv2.VideoCapture:
+    capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    if not capture.isOpened():
+        raise InputError(f"cannot open video {path} (unknown container or codec, or not a video)")
+    return capture
+
+
+def _to_float(frame: np.ndarray, path: Path) -> np.ndarray:
+    if frame.dtype == np.uint8:
+        scale = 255.0
+    elif frame.dtype == np.uint16:
+        scale = 65535.0
+    else:
+        raise InputError(f"{path}: unsupported pixel type {frame.dtype}")
+    if frame.ndim == 3:
+        frame = frame[..., 2::-1]  # BGR(A) -> RGB
+    return (frame.astype(np.float32) / np.float32(scale)).copy()
+
+
+class VideoSource(FrameSource):
+    """Two video files opened lazily (per process) and decoded frame by frame."""
+
+    kind = "video"
+
+    def __init__(self, left, right, *, info, num_frames, shape, calibration, warnings=()):
+        self.files = {"left": Path(left), "right": Path(right)}
+        self.calibration = calibration
+        self._captures: dict[str, cv2.VideoCapture] = {}
+        self._next: dict[str, int] = {}
+        self._cache: dict[str, OrderedDict] = {"left": OrderedDict(), "right": OrderedDict()}
+        paths = [self.files["left"], self.files["right"]]
+        if calibration.path is not None:
+            paths.append(calibration.path)
+        super().__init__(
+            root=self.files["left"],
+            name=f"{self.files['left'].name} + {self.files['right'].name}",
+            paths=paths,
+            info=info,
+            num_frames=num_frames,
+            shape=shape,
+            channels=3,
+            warnings=warnings,
+        )
+
+    def frame_label(self, view: str, index: int) -> str:
+        return f"{self.files[view]} frame {index}"
+
+    def close(self) -> None:
+        """Release the decoders (they reopen on the next read)."""
+        for capture in self._captures.values():
+            capture.release()
+        self._captures.clear()
+        self._next.clear()
+
+    def __del__(self):
+        self.close()
+
+    def _decode(self, view: str, index: int) -> np.ndarray:
+        path = self.files[view]
+        capture = self._captures.get(view)
+        if capture is None:
+            capture = self._captures[view] = _capture(path)
+            self._next[view] = 0
+        if self._next[view] != index:
+            capture.set(cv2.CAP_PROP_POS_FRAMES, index)
+            if int(round(capture.get(cv2.CAP_PROP_POS_FRAMES))) != index:
+                # Inexact seek: decode from the start instead.
+                capture.release()
+                capture = self._captures[view] = _capture(path)
+                for _ in range(index):
+                    if not capture.grab():
+                        break
+        ok, frame = capture.read()
+        if not ok or frame is None:
+            self._next[view] = -1
+            raise InputError(
+                f"cannot read frame {index} of {path} (the file says it has "
+                f"{self.num_frames} frames; truncated or corrupt?)"
+            )
+        self._next[view] = index + 1
+        return _to_float(frame, path)
+
+    def _read_stored(self, view: str, index: int) -> np.ndarray:
+        cache = self._cache[view]
+        if index in cache:
+            cache.move_to_end(index)
+            return cache[index].copy()
+        frame = self._decode(view, index)
+        cache[index] = frame
+        while len(cache) > CACHE_FRAMES:
+            cache.popitem(last=False)
+        return frame.copy()
+
+
+def _probe(path: Path) -> dict:
+    """Size, frame count and frame rate of a video; reads its first frame to check it."""
+    if not path.is_file():
+        raise FileNotFoundError(f"video file not found: {path}")
+    capture = _capture(path)
+    try:
+        ok, frame = capture.read()
+        if not ok or frame is None:
+            raise InputError(f"cannot decode the first frame of {path}")
+        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        if count <= 0:  # not in the container: count by decoding, one frame at a time
+            count = 1
+            while capture.grab():
+                count += 1
+        fps = capture.get(cv2.CAP_PROP_FPS)
+    finally:
+        capture.release()
+    return {
+        "size": (frame.shape[1], frame.shape[0]),
+        "count": count,
+        "fps": fps if fps and math.isfinite(fps) and fps > 0 else None,
+    }
+
+
+def open_video_pair(
+    left,
+    right,
+    calib,
+    *,
+    exposure=None,
+    frame_rate=None,
+    color=None,
+    require_exposure: bool = True,
+) -> VideoSource:
+    """Open two rectified videos as a stereo clip, with the stereo calibration ``calib``.
+
+    The videos must have the same size and frame rate; when their frame counts differ
+    the extra frames of the longer one are ignored (with a warning).
+    """
+    left, right = Path(left), Path(right)
+    if calib is None:
+        raise InputError(
+            "a video pair needs --calib FILE: an OpenCV stereo calibration (YAML with P1, P2 "
+            "or Q) or a camera.json"
+        )
+    if left.resolve() == right.resolve():
+        raise InputError(f"the left and right videos are the same file: {left}")
+    calibration = read_stereo_calibration(calib)
+    probes = {"left": _probe(left), "right": _probe(right)}
+    if probes["left"]["size"] != probes["right"]["size"]:
+        (lw, lh), (rw, rh) = probes["left"]["size"], probes["right"]["size"]
+        raise InputError(f"{right} is {rw}x{rh} but {left} is {lw}x{lh}: both views need one size")
+    rates = [probes[v]["fps"] for v in ("left", "right")]
+    if None not in rates and abs(rates[0] - rates[1]) > 1e-3 * rates[0]:
+        raise InputError(
+            f"{left} has {rates[0]:.6g} frames per second but {right} has {rates[1]:.6g}"
+        )
+    check_image_size(calibration, probes["left"]["size"], f"video {left}")
+    warnings = []
+    counts = probes["left"]["count"], probes["right"]["count"]
+    if counts[0] != counts[1]:
+        warnings.append(
+            f"{left} has {counts[0]} frames and {right} {counts[1]}: using the first "
+            f"{min(counts)} of both"
+        )
+    info = camera_info(
+        calibration.camera,
+        f"video {left}",
+        frame_rate=frame_rate,
+        exposure=exposure,
+        color=color,
+        source_frame_rate=rates[0] if rates[0] is not None else calibration.frame_rate,
+        source_exposure=calibration.exposure,
+        source_color=calibration.color,
+        require_exposure=require_exposure,
+    )
+    width, height = probes["left"]["size"]
+    return VideoSource(
+        left,
+        right,
+        info=info,
+        num_frames=min(counts),
+        shape=(height, width),
+        calibration=calibration,
+        warnings=warnings,
+    )
+
+
+def write_video(path, frames, *, frame_rate: float, codec: str = "FFV1") -> Path:
+    """Write 8-bit RGB frames (float in [0, 1] or uint8, (H, W, 3)) to a video file.
+
+    ``codec`` is a fourcc; FFV1 in ``.mkv`` is lossless. Used to make test clips.
+    """
+    path = Path(path)
+    writer = None
+    try:
+        for frame in frames:
+            frame = np.asarray(frame)
+            if frame.dtype != np.uint8:
+                frame = np.rint(np.clip(frame, 0, 1) * 255).astype(np.uint8)
+            if frame.ndim == 2:
+                frame = np.repeat(frame[..., None], 3, axis=2)
+            if writer is None:
+                height, width = frame.shape[:2]
+                writer = cv2.VideoWriter(
+                    str(path), cv2.VideoWriter_fourcc(*codec), float(frame_rate), (width, height)
+                )
+                if not writer.isOpened():
+                    raise InputError(f"cannot write {path} with codec {codec!r}")
+            writer.write(np.ascontiguousarray(frame[..., ::-1]))
+    finally:
+        if writer is not None:
+            writer.release()
+    return path

@@ -1,0 +1,102 @@
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from stereodeblur.cli import build_parser, main
+from stereodeblur.evaluation import paper_bench
+from stereodeblur.evaluation.paper_bench import (
+    ALPHA_SWEEP,
+    COLUMNS,
+    MASKED_COLUMNS,
+    sweep_column,
+    weight_statistics,
+)
+from stereodeblur.io.formats import read_png
+from stereodeblur.pipeline import DeblurSettings
+
+TINY = [
+    "bench",
+    "paper",
+    "--size",
+    "64x48",
+    "--scenes",
+    "squares",
+    "--irls",
+    "2",
+    "--cg",
+    "3",
+    "--samples",
+    "8",
+    "--render-samples",
+    "6",
+    "--alpha-sweep",
+    "-q",
+]
+
+
+def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, monkeypatch):
+    work = tmp_path / "work"
+    assert main([*TINY, "--work", str(work)]) == 0
+    text = capsys.readouterr().out
+    for column in COLUMNS:
+        assert column.title in text
+    for heading in ("Table 2", "Table 3", "Table 4", "Alpha sweep", "weights"):
+        assert heading in text
+    folder = work / "64x48"
+    assert (folder / "paper.md").read_text() == text.rstrip("\n") + "\n"
+    (row,) = json.loads((folder / "paper.json").read_text())
+    keys = [c.key for c in COLUMNS + MASKED_COLUMNS] + [sweep_column(a).key for a in ALPHA_SWEEP]
+    assert sorted(row["columns"]) == sorted(keys)
+    for key, entry in row["columns"].items():
+        assert 10 < entry["psnr"] < 60 and 0 < entry["ssim"] <= 1, key
+    assert row["columns"]["ours-full"]["alpha"] != 1e-3  # auto
+    assert row["columns"]["homographies"]["alpha"] == 1e-3
+    assert not math.isnan(row["columns"]["homographies"]["ade"])
+    assert not math.isnan(row["columns"]["initial-flow"]["aep"])
+    assert 0 <= row["columns"]["ours-full"]["changed_last_percent"] <= 100
+    figure = read_png(folder / "figures" / "squares.png")
+    assert figure.shape[1] == 64 * (len(COLUMNS) + 2)
+    # A second run reads every result from the cache: deblurring it again would fail.
+    monkeypatch.setattr(paper_bench, "run_column", None)
+    assert main([*TINY, "--work", str(work)]) == 0
+    assert "Table 3" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("column", COLUMNS + MASKED_COLUMNS, ids=lambda c: c.key)
+def test_every_column_is_a_combination_of_the_cli_switches(column):
+    args = build_parser().parse_args(["deblur", "scene", "-o", "out", *column.flags().split()])
+    from stereodeblur.cli import _settings
+
+    assert _settings(args) == column.settings(DeblurSettings(motion_source="gt"))
+
+
+def test_weight_statistics_count_low_weights_near_boundaries_and_flow_errors():
+    shape = (20, 30)
+    weights = np.ones(shape, np.float32)
+    weights[5, 5:10] = 0.1  # next to the mixed pixel (5, 7): explained
+    weights[15, 20] = 0.2  # where the flow is wrong: explained
+    weights[15, 2] = 0.3  # neither: unexplained
+    mixed = np.zeros(shape, bool)
+    mixed[7, 7] = True
+    flow_error = np.zeros(shape)
+    flow_error[15, 20] = 2.0
+    previous = weights.copy()
+    previous[0, :6] = 0.5  # six pixels changed by 0.5 in the last update
+    result = SimpleNamespace(
+        result=SimpleNamespace(weights=weights, weights_history=(previous, weights))
+    )
+    stats = weight_statistics(result, mixed, flow_error)
+    assert stats["low_weight_percent"] == pytest.approx(100 * 7 / 600)
+    assert stats["low_weight_explained_percent"] == pytest.approx(100 * 6 / 7)
+    assert stats["changed_last_percent"] == pytest.approx(100 * 6 / 600)
+    fixed = SimpleNamespace(result=SimpleNamespace(weights=weights, weights_history=None))
+    assert weight_statistics(fixed, mixed, flow_error) == {}
+
+
+def test_unknown_scene_is_a_one_line_error(tmp_path, capsys):
+    code = main(["bench", "paper", "--scenes", "teapot", "--work", str(tmp_path)])
+    assert code == 2
+    assert "unknown scene 'teapot'" in capsys.readouterr().err
