@@ -115,7 +115,10 @@ def _read_objects(root: Path) -> list[dict]:
 
 
 def object_errors(sceneflow, objects: list[dict], disparity_gt, flow_gt, frame: int):
-    """Per-object plane and motion errors (see the module docstring)."""
+    """Per-object plane and motion errors (see the module docstring).
+
+    Only planar objects (with a ``normal`` in gt/objects.json) are matched; solids are skipped.
+    """
     from ..geometry.plane import move_plane, plane_disparity
     from ..sceneflow.model import SceneFlow
 
@@ -127,6 +130,7 @@ def object_errors(sceneflow, objects: list[dict], disparity_gt, flow_gt, frame: 
     best = np.full((height, width), np.inf)
     owner = np.full((height, width), -1)
     truths = []
+    objects = [obj for obj in objects if "normal" in obj]
     for k, obj in enumerate(objects):
         twist = np.asarray(obj["twist"], dtype=np.float64)
         M0 = se3_exp(frame * twist)

@@ -1,5 +1,13 @@
 """Physically rendered synthetic scenes with exact ground truth (benchmark data)."""
 
+from .objects import (
+    NOISE_SIGMA,
+    OBJECT_SCENES,
+    add_noise,
+    make_object_scene,
+    object_setup,
+    write_object_set,
+)
 from .planar import (
     PLANAR_MOTIONS,
     Curvature,
@@ -14,13 +22,18 @@ from .planar import (
 )
 from .render import (
     BlurredRender,
+    BoxObject,
+    CylinderObject,
     InstantRender,
     PlanarObject,
     RayHits,
     RenderedScene,
     SceneSetup,
+    SphereObject,
     cast_rays,
+    describe_object,
     intersect_plane,
+    periodic_texture,
     render_blurred,
     render_instant,
     render_scene,
@@ -31,21 +44,31 @@ from .render import (
 from .textures import TEXTURE_NAMES, load_texture
 
 __all__ = [
+    "NOISE_SIGMA",
+    "OBJECT_SCENES",
     "PLANAR_MOTIONS",
     "TEXTURE_NAMES",
     "BlurredRender",
+    "BoxObject",
     "Curvature",
+    "CylinderObject",
     "InstantRender",
     "PlanarMotion",
     "PlanarObject",
     "RayHits",
     "RenderedScene",
     "SceneSetup",
+    "SphereObject",
+    "add_noise",
     "cast_rays",
     "curvature_px",
+    "describe_object",
     "intersect_plane",
     "load_texture",
+    "make_object_scene",
     "make_planar_scene",
+    "object_setup",
+    "periodic_texture",
     "planar_camera",
     "planar_setup",
     "render_blurred",
@@ -55,6 +78,7 @@ __all__ = [
     "shade",
     "textured_plane",
     "track",
+    "write_object_set",
     "write_planar_set",
     "write_rendered_scene",
 ]
