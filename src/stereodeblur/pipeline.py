@@ -27,8 +27,9 @@ from .blur.operator import SparseBlur
 from .deconv.irls import DeblurResult, deblur_irls
 from .errors import InputError
 from .geometry.camera import Exposure
-from .sceneflow.from_gt import default_num_segments, sceneflow_from_gt, superpixels
+from .sceneflow.from_gt import default_num_segments, sceneflow_from_gt
 from .sceneflow.model import SceneFlow
+from .sceneflow.superpixels import slic_segments
 
 KERNELS = ("homography", "displacement")
 MOTION_SOURCES = ("gt", "sceneflow", "initial-flow")
@@ -225,7 +226,7 @@ def _gt_motion(scene, index, neighbour, view, settings, blurred) -> FrameMotion:
         )
     left_blurred = blurred if view == "left" else scene.read_frame("left", index)
     num = settings.num_segments or default_num_segments(left_blurred.shape[:2])
-    labels = superpixels(left_blurred, num)
+    labels = slic_segments(left_blurred, num)
     flow = scene.read_gt_flow("left", index)
     sf = sceneflow_from_gt(
         scene.info.camera,

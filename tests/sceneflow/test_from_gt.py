@@ -1,8 +1,9 @@
 import numpy as np
 
 from stereodeblur.geometry import StereoCamera, move_plane, plane_disparity, se3_exp
-from stereodeblur.sceneflow.from_gt import sceneflow_from_gt, superpixels
+from stereodeblur.sceneflow.from_gt import sceneflow_from_gt
 from stereodeblur.sceneflow.model import SceneFlow
+from stereodeblur.sceneflow.superpixels import slic_segments
 
 CAMERA = StereoCamera([[120.0, 0, 40], [0, 120.0, 30], [0, 0, 1]], 0.1)
 
@@ -57,7 +58,7 @@ def test_superpixels_count():
     from skimage.transform import resize
 
     img = resize(astronaut(), (60, 80), anti_aliasing=True).astype(np.float32)
-    labels = superpixels(img, 48)
+    labels = slic_segments(img, 48)
     assert labels.min() == 0 and labels.max() + 1 == len(np.unique(labels))
     assert 20 <= labels.max() + 1 <= 100
 

@@ -24,22 +24,6 @@ def default_num_segments(shape: tuple[int, int]) -> int:
     return max(16, round(1200 * shape[0] * shape[1] / (640 * 480)))
 
 
-def superpixels(image: np.ndarray, num_segments: int, *, compactness: float = 10.0) -> np.ndarray:
-    """SLIC superpixels of ``image`` as consecutive int32 labels from 0."""
-    from skimage.segmentation import slic
-
-    labels = slic(
-        np.asarray(image, dtype=np.float64),
-        n_segments=num_segments,
-        compactness=compactness,
-        start_label=0,
-        channel_axis=-1 if np.ndim(image) == 3 else None,
-        enforce_connectivity=True,
-    )
-    _, labels = np.unique(labels, return_inverse=True)
-    return labels.reshape(np.shape(image)[:2]).astype(np.int32)
-
-
 def _sample_smooth(
     image: np.ndarray, x: np.ndarray, y: np.ndarray, *, max_bend: float
 ) -> np.ndarray:
