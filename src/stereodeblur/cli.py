@@ -188,6 +188,8 @@ def cmd_deblur(args) -> int:
     source = spec.open()
     frames = None if args.frames is None else parse_frames(args.frames, source.num_frames)
     views = ["left", "right"] if args.views == "both" else [args.views]
+    if args.sceneflow:
+        return _deblur_with_saved_sceneflow(args, settings, source, frames, views)
     report = deblur_clip(
         spec,
         args.output,
@@ -212,6 +214,37 @@ def cmd_deblur(args) -> int:
         return EXIT_USAGE if all(r.input_error for r in failed) else 1
     skipped = f", {len(report.skipped)} already done" if report.skipped else ""
     print(f"wrote {report.done} frame(s) to {report.output}{skipped}")
+    return 0
+
+
+def _deblur_with_saved_sceneflow(args, settings, source, frames, views) -> int:
+    """``deblur --sceneflow FILE``: one frame, its motion read from ``stereodeblur sceneflow``."""
+    from .io.scene import SceneWriter
+    from .pipeline import deblur_frame, neighbour_of, sceneflow_motion
+    from .sceneflow.storage import load_sceneflow
+
+    if settings.motion_source == "initial-flow" or frames is None or len(frames) != 1:
+        raise InputError(
+            "--sceneflow FILE needs --frames with the one frame the file describes "
+            "and --motion-source sceneflow"
+        )
+    index = frames[0]
+    sceneflow = load_sceneflow(args.sceneflow)
+    if sceneflow.shape != tuple(source.shape):
+        raise InputError(
+            f"{args.sceneflow}: scene flow of size {sceneflow.shape}, "
+            f"frames are {tuple(source.shape)}"
+        )
+    neighbour = neighbour_of(index, source.num_frames)
+    say = Progress(args.quiet)
+    writer = SceneWriter(args.output, source.info, overwrite=args.overwrite, protect=[source.root])
+    for view in views:
+        motion = sceneflow_motion(sceneflow, index, neighbour, view)
+        result = deblur_frame(
+            source, index, view=view, settings=settings, motion=motion, progress=say
+        )
+        writer.write_frame(view, index, result.image)
+    print(f"wrote {len(views)} frame(s) to {writer.root}")
     return 0
 
 
@@ -365,6 +398,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="deblur finished frames again; allow writing into a folder of another scene",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument(
+        "--sceneflow",
+        metavar="FILE",
+        help="reuse a scene flow saved by 'stereodeblur sceneflow' (OUT/sceneflow/NNNNNN.npz) "
+        "for the one frame given with --frames",
+    )
     p.add_argument(
         "--point-cloud",
         action="store_true",

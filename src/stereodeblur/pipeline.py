@@ -264,7 +264,12 @@ def frame_motion(scene, index: int, view: str, settings: DeblurSettings, blurred
     estimate = estimate_scene_flow(
         *frames, scene.info.camera, num_segments=settings.num_segments, seed=settings.seed
     )
-    sf = estimate.sceneflow
+    return sceneflow_motion(estimate.sceneflow, index, neighbour, view)
+
+
+def sceneflow_motion(sceneflow: SceneFlow, index: int, neighbour: int, view: str) -> FrameMotion:
+    """Motion of frame ``index`` of ``view`` from a left-view scene flow towards ``neighbour``."""
+    sf = sceneflow
     if neighbour < index:  # motion to the previous frame, as a motion towards the next one
         sf = sf.reversed()
     if view == "right":
