@@ -31,6 +31,7 @@ import numba
 import numpy as np
 
 from ..geometry.camera import StereoCamera
+from ..geometry.rigid import so3_exp
 
 MIN_PLANE_PIXELS = 8
 MIN_MOTION_PIXELS = 12
@@ -269,12 +270,6 @@ def _kabsch(groups, num_groups, P, Q, w):
     return R, T
 
 
-def _so3_exp(omega: np.ndarray) -> np.ndarray:
-    from ..geometry.rigid import so3_exp
-
-    return so3_exp(omega.astype(np.float64))
-
-
 def correspondences(
     camera: StereoCamera,
     flow: np.ndarray,
@@ -406,7 +401,7 @@ def fit_motions(
             Jtr[~solvable] = 0.0
             delta = -np.linalg.solve(JtJ, Jtr[..., None])[..., 0]
             # Left-multiplicative update: M <- exp(delta) M.
-            dR = _so3_exp(delta[:, 3:])
+            dR = so3_exp(delta[:, 3:].astype(np.float64))
             R = dR @ R
             T = np.einsum("gij,gj->gi", dR, T) + delta[:, :3]
     R = np.where(ok[:, None, None], R, np.eye(3))

@@ -38,8 +38,8 @@ Dense outputs
 
 from __future__ import annotations
 
+import io
 import os
-import secrets
 import zipfile
 from pathlib import Path
 
@@ -47,6 +47,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS, StereoCamera
+from ..io.formats import _atomic_write
 from .model import SceneFlow
 
 FORMAT = "stereodeblur-sceneflow/1"
@@ -74,29 +75,19 @@ def save_sceneflow(path: str | os.PathLike, sceneflow) -> Path:
     Path
     """
     sf = _as_sceneflow(sceneflow)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
-    try:
-        with open(tmp, "wb") as handle:
-            np.savez_compressed(
-                handle,
-                format=np.array(FORMAT),
-                labels=sf.labels.astype(np.int32),
-                normals=sf.normals.astype(np.float64),
-                twists=sf.twists.astype(np.float64),
-                occlusion=sf.occlusion.astype(np.uint8),
-                view=np.array(sf.view),
-                K=sf.camera.K.astype(np.float64),
-                baseline=np.array(sf.camera.baseline, dtype=np.float64),
-            )
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    buffer = io.BytesIO()
+    np.savez_compressed(
+        buffer,
+        format=np.array(FORMAT),
+        labels=sf.labels.astype(np.int32),
+        normals=sf.normals.astype(np.float64),
+        twists=sf.twists.astype(np.float64),
+        occlusion=sf.occlusion.astype(np.uint8),
+        view=np.array(sf.view),
+        K=sf.camera.K.astype(np.float64),
+        baseline=np.array(sf.camera.baseline, dtype=np.float64),
+    )
+    return _atomic_write(path, buffer.getvalue())
 
 
 def load_sceneflow(path: str | os.PathLike) -> SceneFlow:

@@ -14,6 +14,7 @@ import functools
 import numpy as np
 
 from ..errors import InputError
+from ..io.formats import srgb_to_linear
 
 # Name -> skimage.data loader. All of these are files inside the scikit-image wheel
 # and at least 500 x 400 texels, so that they cover a 640 x 480 view at a modest
@@ -32,13 +33,6 @@ _LOADERS = {
 
 TEXTURE_NAMES: tuple[str, ...] = tuple(_LOADERS)
 """Names accepted by :func:`load_texture`, in the order the planar set cycles through."""
-
-
-def srgb_to_linear(values: np.ndarray) -> np.ndarray:
-    """Decode the sRGB curve (IEC 61966-2-1) of values in [0, 1]."""
-    values = np.asarray(values, dtype=np.float64)
-    curve = ((np.maximum(values, 0.04045) + 0.055) / 1.055) ** 2.4
-    return np.where(values <= 0.04045, values / 12.92, curve)
 
 
 @functools.cache
