@@ -5,9 +5,9 @@ frame uses the motion to frame i - 1 (the scene flow from i to i - 1). Motion
 sources are orthogonal to kernel types, so every variant of the paper's tables
 is a combination of ``motion_source`` and ``kernels``:
 
-- ``motion_source='gt'``: planes and motions fitted per superpixel to the scene's
-  gt/disparity (frames i, i + 1) and gt/flow (frame i); 2D displacements taken
-  directly from gt/flow.
+- ``motion_source='gt'``: planes and motions fitted per superpixel (cut where the
+  gt jumps) to the scene's gt/disparity (frames i, i + 1) and gt/flow (frame i);
+  2D displacements taken directly from gt/flow.
 - ``motion_source='sceneflow'``: piecewise-rigid scene flow estimated from the
   blurred stereo frames; 2D displacements are its projection.
 - ``motion_source='initial-flow'``: the initial optical flow of the left view alone
@@ -27,7 +27,11 @@ from .blur.operator import SparseBlur
 from .deconv.irls import DeblurResult, deblur_irls
 from .errors import InputError
 from .geometry.camera import Exposure
-from .sceneflow.from_gt import default_num_segments, sceneflow_from_gt
+from .sceneflow.from_gt import (
+    default_num_segments,
+    sceneflow_from_gt,
+    split_at_discontinuities,
+)
 from .sceneflow.model import SceneFlow
 from .sceneflow.superpixels import slic_segments
 
@@ -226,11 +230,12 @@ def _gt_motion(scene, index, neighbour, view, settings, blurred) -> FrameMotion:
         )
     left_blurred = blurred if view == "left" else scene.read_frame("left", index)
     num = settings.num_segments or default_num_segments(left_blurred.shape[:2])
-    labels = slic_segments(left_blurred, num)
     flow = scene.read_gt_flow("left", index)
+    disparity = scene.read_gt_disparity("left", index)
+    labels = split_at_discontinuities(slic_segments(left_blurred, num), disparity, flow)
     sf = sceneflow_from_gt(
         scene.info.camera,
-        scene.read_gt_disparity("left", index),
+        disparity,
         scene.read_gt_disparity("left", neighbour),
         flow,
         labels,

@@ -2,7 +2,15 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from stereodeblur.sceneflow.census import NUM_OFFSETS, OFFSETS, census_cost, census_transform
+from stereodeblur.sceneflow.census import (
+    NUM_OFFSETS,
+    OFFSETS,
+    census_cost,
+    census_thresholds,
+    census_transform,
+    noise_level,
+    wrong_match_cost,
+)
 
 
 def _texture(shape=(40, 50), seed=0):
@@ -64,3 +72,48 @@ def test_cost_interpolates_between_pixels_and_is_nan_outside():
 def test_rejects_colour_images():
     with pytest.raises(ValueError, match="grey"):
         census_transform(np.zeros((4, 4, 3)))
+
+
+def test_noise_level_recovers_the_noise_of_a_smooth_image():
+    rng = np.random.default_rng(1)
+    smooth = 0.2 + 0.6 * _texture((120, 160), seed=2)
+    smooth = ndimage.gaussian_filter(smooth, 2.0)
+    for sigma in (0.005, 0.02):
+        noisy = smooth + sigma * rng.standard_normal(smooth.shape)
+        assert noise_level(noisy) == pytest.approx(sigma, rel=0.15)
+    assert noise_level(smooth) < 0.002
+
+
+def test_thresholds_shrink_with_brightness_and_stay_above_the_noise():
+    image = np.array([[0.0, 0.01, 0.25, 1.0]])
+    t = census_thresholds(image, threshold=0.008)
+    np.testing.assert_allclose(t[0], 0.008 * np.sqrt(image[0] / 0.25), rtol=1e-6)
+    t = census_thresholds(image, threshold=0.008, noise=0.01, noise_factor=1.0)
+    np.testing.assert_allclose(t[0], [0.01414, 0.01414, 0.01414, 0.016], rtol=1e-3)
+
+
+def test_dark_texture_is_matched_with_brightness_relative_thresholds():
+    # A dark textured stereo pair (values about 0.005 .. 0.02, shifted by 3 px): with a
+    # fixed threshold of 2/255 the codes are flat and every disparity matches equally
+    # well; thresholds relative to the brightness tell the true one from a wrong one.
+    base = _texture((40, 60), seed=4)
+    dark = 0.005 + 0.015 * base
+    left, right = dark[:, :-3], dark[:, 3:]  # left x matches right x - 3
+    y, x = np.mgrid[0:40, 10:50]
+    y, x = y.ravel(), x.ravel()
+    a = census_transform(left, threshold=census_thresholds(left))
+    b = census_transform(right, threshold=census_thresholds(right))
+    true = census_cost(a, b, x, y, x - 3.0, y).mean()
+    wrong = census_cost(a, b, x, y, x - 6.0, y).mean()
+    assert true < 0.05 and wrong > 0.3
+
+
+def test_wrong_match_cost_is_low_in_clean_flat_regions_and_high_in_noise():
+    rng = np.random.default_rng(5)
+    flat = census_transform(np.full((30, 30), 0.5))
+    assert np.all(wrong_match_cost(flat) == 0.0)
+    noisy = census_transform(0.5 + 0.05 * rng.standard_normal((30, 30)))
+    assert wrong_match_cost(noisy).mean() > 0.4
+    # Texture: the cost against pixels 4 px away is that of a wrong match.
+    tex = census_transform(_texture((30, 30), seed=6))
+    assert wrong_match_cost(tex).mean() > 0.3

@@ -1,7 +1,7 @@
 import numpy as np
 
 from stereodeblur.geometry import StereoCamera, move_plane, plane_disparity, se3_exp
-from stereodeblur.sceneflow.from_gt import sceneflow_from_gt
+from stereodeblur.sceneflow.from_gt import sceneflow_from_gt, split_at_discontinuities
 from stereodeblur.sceneflow.model import SceneFlow
 from stereodeblur.sceneflow.superpixels import slic_segments
 
@@ -71,3 +71,32 @@ def test_unknown_flow_is_occluded_not_an_error():
     fitted = sceneflow_from_gt(CAMERA, truth.disparity(), _next_disparity_map(truth), flow, labels)
     assert fitted.occlusion[10:20, 10:20].all()
     assert np.all(np.isfinite(fitted.twists))
+
+
+def test_split_cuts_segments_at_jumps_and_merges_slivers():
+    shape = (30, 40)
+    labels = np.zeros(shape, np.int32)
+    disparity = np.where(np.arange(40)[None, :] < 20, 5.0, 10.0) * np.ones(shape)
+    flow = np.zeros((*shape, 2))
+    flow[:, 20:, 0] = 2.0
+    flow[10:12, 5:7, 0] = 1.0  # a 4-pixel sliver moving differently, inside the left part
+    split = split_at_discontinuities(labels, disparity, flow)
+    assert split.max() + 1 == 2
+    assert np.all(split[:, :20] == split[0, 0]) and np.all(split[:, 20:] == split[0, 39])
+    assert split[0, 0] != split[0, 39]
+
+
+def test_background_covered_at_t1_keeps_its_own_motion():
+    shape = (40, 80)
+    labels = np.zeros(shape, dtype=np.int32)
+    labels[:, 40:] = 1
+    normals = np.array([[0.0, 0.0, 0.2], [0.0, 0.0, 0.5]])  # background 5 m, foreground 2 m
+    twists = np.array([[0.0] * 6, [-0.1, 0.0, 0.0, 0.0, 0.0, 0.0]])  # foreground 6 px left
+    truth = SceneFlow(CAMERA, labels, normals, twists, np.zeros(shape, bool))
+    strips = (np.arange(80)[None, :] // 10).repeat(40, 0).astype(np.int32)
+    fitted = sceneflow_from_gt(
+        CAMERA, truth.disparity(), _next_disparity_map(truth), truth.flow(), strips
+    )
+    # Strip 3 (x = 30..39) is 60 % covered by the foreground at t + 1.
+    np.testing.assert_allclose(fitted.twists[3], 0.0, atol=1e-6)
+    np.testing.assert_allclose(fitted.twists[4], twists[1], atol=1e-6)

@@ -72,3 +72,50 @@ def test_init_on_an_empty_slot_is_rejected():
     cands[1, 1] = -1
     with pytest.raises(ValueError, match="init"):
         alpha_expansion(D, V, edges, cands, np.array([0, 1, 0, 0]))
+
+
+def _one_segment_graph(shape):
+    from stereodeblur.sceneflow.superpixels import segment_graph
+
+    return segment_graph(np.zeros(shape, dtype=np.int32))
+
+
+def test_leaving_the_view_is_not_cheaper_than_matching_noise():
+    # Flat grey plus independent noise in every view: every match costs as much as a
+    # wrong one, so a motion that carries all pixels out of the image must not win.
+    from stereodeblur.geometry import StereoCamera
+    from stereodeblur.sceneflow.census import census_transform
+    from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+
+    shape = (40, 56)
+    rng = np.random.default_rng(3)
+    codes = tuple(
+        census_transform(np.clip(0.3 + 0.02 * rng.standard_normal(shape), 0, 1)) for _ in range(4)
+    )
+    camera = StereoCamera([[50.0, 0, 27.5], [0, 50.0, 19.5], [0, 0, 1]], 0.1)
+    graph = _one_segment_graph(shape)
+    samples, bounds, factor = sample_pixels(graph, 1)
+    R = np.tile(np.eye(3), (2, 1, 1))
+    T = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])  # static; far to the side
+    props = ProposalSet(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 2.0]]), R, T)
+    D = data_costs(camera, codes, samples, bounds, factor, np.array([[0, 1]]), props)
+    stay, leave = D[0]
+    assert stay > 0.3 * 3 * graph.sizes[0]  # noise: matches are poor
+    assert leave >= 0.9 * stay
+
+
+def test_leaving_the_view_is_free_in_a_clean_flat_region():
+    from stereodeblur.geometry import StereoCamera
+    from stereodeblur.sceneflow.census import census_transform
+    from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+
+    shape = (40, 56)
+    codes = tuple(census_transform(np.full(shape, 0.4)) for _ in range(4))
+    camera = StereoCamera([[50.0, 0, 27.5], [0, 50.0, 19.5], [0, 0, 1]], 0.1)
+    graph = _one_segment_graph(shape)
+    samples, bounds, factor = sample_pixels(graph, 1)
+    R = np.tile(np.eye(3), (2, 1, 1))
+    T = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    props = ProposalSet(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 2.0]]), R, T)
+    D = data_costs(camera, codes, samples, bounds, factor, np.array([[0, 1]]), props)
+    assert D[0, 0] == pytest.approx(0.0) and D[0, 1] == pytest.approx(0.0)

@@ -34,7 +34,8 @@ class IrlsIterate:
     energy : float
         ``data_term + prior_term``, the objective IRLS decreases (see :func:`deblur_irls`).
     data_term : float
-        ``sum_x || w(x) (B(x) - A_x I) ||^2`` with the weights used in this iteration.
+        ``sum_x || w(x) (B(x) - A_x I) ||^2`` with the weights used in this iteration, plus
+        the anchor term ``sum_x beta(x) || I(x) - B(x) ||^2`` if any.
     prior_term : float
         ``(2 / exponent) * alpha * sum h_eps(d I)`` over channels and both directions.
     weights_mean : float
@@ -292,6 +293,7 @@ def deblur_irls(
     num_irls: int = 10,
     num_cg: int = 25,
     update_weights: Callable | None = None,
+    anchor: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> DeblurResult:
     """Deblur ``blurred`` by IRLS on a weighted least-squares data term and ``|d I|^p`` prior.
@@ -339,6 +341,10 @@ def deblur_irls(
         current ``estimate`` (for the residual weights of Eq. 5). Arguments are read-only
         views in the shape of ``blurred`` (weights ``(H, W)``), valid during the call only
         (copy what you keep); the result must be ``(H, W)`` in [0, 1].
+    anchor : ndarray, shape (H, W), optional
+        ``beta(x) >= 0``: adds ``sum_x beta(x) || I(x) - B(x) ||^2`` to the energy (and
+        ``diag(beta)`` to the normal equations), which keeps the estimate near the blurred
+        frame where the blur model is not trusted; none by default.
     progress : callable, optional
         ``progress(completed, num_irls)`` after each IRLS iteration.
 
@@ -378,12 +384,23 @@ def deblur_irls(
             num_irls,
             num_cg,
             update_weights,
+            anchor,
             progress,
         )
 
 
 def _deblur(
-    blurred, operator, weights, alpha, exponent, epsilon, num_irls, num_cg, update_weights, progress
+    blurred,
+    operator,
+    weights,
+    alpha,
+    exponent,
+    epsilon,
+    num_irls,
+    num_cg,
+    update_weights,
+    anchor,
+    progress,
 ) -> DeblurResult:
     """The body of :func:`deblur_irls` on validated arguments."""
     shape = blurred.shape
@@ -392,6 +409,12 @@ def _deblur(
     if not np.all(np.isfinite(b3)):
         raise InputError("blurred contains NaN or infinite values")
     w = np.ones(plane, np.float32) if weights is None else _check_weights(weights, plane, "weights")
+    beta = None
+    if anchor is not None:
+        beta = np.asarray(anchor, dtype=np.float32)
+        if beta.shape != plane or not np.all(np.isfinite(beta) & (beta >= 0)):
+            raise InputError(f"anchor must be finite, >= 0 and of shape {plane}")
+        beta = np.ascontiguousarray(beta) if beta.any() else None
 
     def forward(image3d):
         return _as_3d(np.asarray(operator.forward(image3d.reshape(shape)), dtype=np.float32))
@@ -412,11 +435,13 @@ def _deblur(
         squared = np.ascontiguousarray(w * w, dtype=np.float32)
         weighted_b = b3.copy()
         _scale_pixels(weighted_b, squared)
-        rhs = np.ascontiguousarray(adjoint(weighted_b), dtype=np.float32)
+        rhs = np.array(adjoint(weighted_b), dtype=np.float32, order="C")
+        if beta is not None:
+            rhs += beta[..., None] * b3
         rhs_norm = np.sqrt(np.einsum("ijc,ijc->c", rhs, rhs, dtype=np.float64))
         return squared, bool(np.all(squared == 1)), rhs, np.where(rhs_norm > 0, rhs_norm, 1.0)
 
-    def normal(p3, row_dots):  # (A^T W^2 A + alpha D^T rho D) p, and p . (that) per row
+    def normal(p3, row_dots):  # (A^T W^2 A + alpha D^T rho D + beta) p, and p . (that) per row
         ap = forward(p3)
         if not unit_weights:
             if np.may_share_memory(ap, p3) or not ap.flags.writeable or not ap.flags.c_contiguous:
@@ -425,13 +450,18 @@ def _deblur(
         q = adjoint(ap)
         if np.may_share_memory(q, p3) or not q.flags.writeable or not q.flags.c_contiguous:
             q = np.array(q, order="C")
+        if beta is not None:
+            q += beta[..., None] * p3
         _add_weighted_laplacian(p3, wx, wy, q, row_dots)
         return q
 
     def data_term(estimate3d):
         reblurred = forward(estimate3d)
         _residual(b3, np.ascontiguousarray(reblurred), squared, residual, partial)
-        return float(partial.sum())
+        data = float(partial.sum())
+        if beta is not None:
+            data += float(np.einsum("ij,ijc->", beta, (estimate3d - b3) ** 2, dtype=np.float64))
+        return data
 
     def prior_term_and_weights(estimate3d):
         _smoothness_weights(
@@ -466,6 +496,8 @@ def _deblur(
         correction = np.zeros_like(start)
         _add_weighted_laplacian(estimate, wx, wy, correction, channel_partial)
         start -= correction
+        if beta is not None:
+            start += beta[..., None] * (b3 - estimate)
         estimate, norms, _ = solve(
             normal, rhs, estimate, num_iterations=int(num_cg), rtol=None, residual=start
         )

@@ -4,7 +4,8 @@ The census descriptor of a pixel compares its grey value with ``NUM_OFFSETS`` = 
 neighbours on a checkerboard pattern of a 7x7 window (offsets ``(dx, dy)`` with
 ``|dx|, |dy| <= 3`` and ``dx + dy`` odd). Each comparison is ternary: brighter
 than the centre by more than ``threshold``, darker by more than ``threshold``, or
-similar; two bits per neighbour are packed into one ``uint64``. The cost of
+similar (the threshold may differ per centre pixel, see :func:`census_thresholds`);
+two bits per neighbour are packed into one ``uint64``. The cost of
 matching two descriptors is the fraction of neighbours whose comparison differs,
 in [0, 1]. It depends only on the order of grey values, so it tolerates gain,
 bias and the mild contrast loss of motion blur. Pixels outside the image are
@@ -35,29 +36,76 @@ NUM_OFFSETS = len(OFFSETS)
 _LOW_BITS = np.uint64(sum(1 << (2 * k) for k in range(NUM_OFFSETS)))
 
 
-def census_transform(image: np.ndarray, *, threshold: float = 0.008) -> np.ndarray:
+def noise_level(image: np.ndarray) -> float:
+    """Standard deviation of white noise in a grey image, robustly estimated.
+
+    The lower quartile of the absolute finest diagonal Haar detail
+    ``(a - b - c + d) / 2`` of 2x2 blocks, divided by 0.3186 (the lower quartile
+    of ``|N(0, 1)|``; as Donoho & Johnstone's 1994 median estimator, but less
+    sensitive to texture): the detail of white noise has the noise's standard
+    deviation, that of smooth (and motion-blurred) image content is small, so
+    the quartile sees the noise. Sharp fine texture gives an overestimate.
+    """
+    g = np.asarray(image, dtype=np.float64)
+    if g.ndim != 2:
+        raise ValueError(f"noise_level needs a grey (H, W) image, got shape {g.shape}")
+    h, w = (g.shape[0] // 2) * 2, (g.shape[1] // 2) * 2
+    if h == 0 or w == 0:
+        return 0.0
+    g = g[:h, :w]
+    detail = np.abs(g[0::2, 0::2] - g[0::2, 1::2] - g[1::2, 0::2] + g[1::2, 1::2]) / 2.0
+    return float(np.quantile(detail, 0.25) / 0.3186)
+
+
+def census_thresholds(
+    image: np.ndarray,
+    *,
+    threshold: float = 0.008,
+    noise: float = 0.0,
+    noise_factor: float = 1.0,
+) -> np.ndarray:
+    """Per-pixel census thresholds: relative to the brightness and above the noise.
+
+    ``max(threshold * sqrt(I / 0.25), noise_factor * sqrt(2) * noise)`` for the
+    pixel's grey value ``I``. The first term is ``threshold`` at a quarter
+    of full scale and shrinks in dark regions like the contrast of linear
+    intensities does (as a fixed threshold on ``sqrt(I)`` would), so that dark
+    texture still counts; the second keeps comparisons from flipping with
+    sensor noise (``noise``, its standard deviation, e.g. from
+    :func:`noise_level`; ``sqrt(2) noise`` is that of a difference of two pixels).
+    """
+    image = np.asarray(image, dtype=np.float64)
+    out = threshold * np.sqrt(np.clip(image, 0.0, None) / 0.25)
+    return np.maximum(out, noise_factor * np.sqrt(2.0) * float(noise)).astype(np.float32)
+
+
+def census_transform(image: np.ndarray, *, threshold: float | np.ndarray = 0.008) -> np.ndarray:
     """Ternary census descriptors of a grey image, shape (H, W), dtype uint64.
 
     Parameters
     ----------
     image : ndarray, shape (H, W)
         Grey values, float in [0, 1].
-    threshold : float
-        Differences within ``threshold`` count as "similar" (about 2 grey levels of 255).
+    threshold : float or ndarray, shape (H, W)
+        Differences within ``threshold`` count as "similar" (default about 2 grey
+        levels of 255); an array gives each centre pixel its own threshold (see
+        :func:`census_thresholds`).
     """
     image = np.asarray(image, dtype=np.float32)
     if image.ndim != 2:
         raise ValueError(f"census_transform needs a grey (H, W) image, got shape {image.shape}")
+    limit = np.broadcast_to(np.asarray(threshold, dtype=np.float32), image.shape)
     padded = np.pad(image, RADIUS, mode="edge")
-    return _census(padded, image.shape[0], image.shape[1], np.float32(threshold))
+    return _census(padded, image.shape[0], image.shape[1], np.ascontiguousarray(limit))
 
 
 @numba.njit(cache=True, nogil=True)
-def _census(padded, height, width, threshold):
+def _census(padded, height, width, thresholds):
     out = np.zeros((height, width), dtype=np.uint64)
     for y in range(height):
         for x in range(width):
             centre = padded[y + RADIUS, x + RADIUS]
+            threshold = thresholds[y, x]
             code = np.uint64(0)
             bit = 0
             for dy in range(-RADIUS, RADIUS + 1):
@@ -116,6 +164,34 @@ def census_cost_at(reference_code, target, x, y):
     c11 = hamming(reference_code, target[y1, x1])
     value = (1 - fy) * ((1 - fx) * c00 + fx * c01) + fy * ((1 - fx) * c10 + fx * c11)
     return value / NUM_OFFSETS
+
+
+def wrong_match_cost(codes: np.ndarray, *, distance: int = 4) -> np.ndarray:
+    """What a wrong match costs at every pixel, shape (H, W), float64 in [0, 1].
+
+    The mean census cost of each pixel's descriptor against those of the pixels
+    ``distance`` pixels left, right, above and below it (clamped at the border):
+    about 0.5 or more in texture and in noise, near 0 in clean flat regions.
+    """
+    codes = np.ascontiguousarray(codes, dtype=np.uint64)
+    if codes.ndim != 2:
+        raise ValueError(f"wrong_match_cost needs (H, W) descriptors, got shape {codes.shape}")
+    return _wrong_match_cost(codes, int(distance))
+
+
+@numba.njit(cache=True, nogil=True)
+def _wrong_match_cost(codes, distance):
+    height, width = codes.shape
+    out = np.empty((height, width))
+    for y in range(height):
+        for x in range(width):
+            c = codes[y, x]
+            total = hamming(c, codes[y, max(x - distance, 0)])
+            total += hamming(c, codes[y, min(x + distance, width - 1)])
+            total += hamming(c, codes[max(y - distance, 0), x])
+            total += hamming(c, codes[min(y + distance, height - 1), x])
+            out[y, x] = total / (4.0 * NUM_OFFSETS)
+    return out
 
 
 def census_cost(

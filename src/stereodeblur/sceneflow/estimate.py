@@ -4,7 +4,9 @@ Vogel, Schindler & Roth (IJCV 2015) model the scene as planar segments moving
 rigidly; the paper (Sec. 3) takes its planes, motions and occlusions from it.
 This estimator follows the same model in stages:
 
-1. census descriptors of the four images (:mod:`census`), robust to blur and gain;
+1. census descriptors of the four images (:mod:`census`), robust to blur and gain,
+   with "similar" bands relative to the brightness (dark texture counts) and
+   above the estimated sensor noise (noise does not pass for texture);
 2. initial disparity at t and t + 1 by semi-global matching and initial optical
    flow (left view, t -> t + 1, and back) by DIS (:mod:`initial`);
 3. SLIC superpixels of the left view at t, about 1200 at 640x480
@@ -51,7 +53,7 @@ from ..errors import InputError
 from ..geometry.camera import StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
 from ..geometry.rigid import se3_log
-from .census import census_cost, census_transform
+from .census import census_cost, census_thresholds, census_transform, noise_level
 from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
 from .initial import initial_disparity, initial_optical_flow, to_gray, to_gray_u8
 from .model import SceneFlow
@@ -74,6 +76,8 @@ MAX_GLOBAL = 6  # largest regions offered to every segment in the region rounds
 NUM_REGION_ROUNDS = 2
 MATCH_COST = 0.3  # census cost (fraction of differing neighbours) of a good match
 MIN_MATCHED = 0.1  # warn when fewer pixels than this match in a view
+CENSUS_THRESHOLD = 0.008  # census "similar" band at a quarter of full scale (clean images)
+CENSUS_NOISE_FACTOR = 1.0  # ... at least the std of the noise of a pixel difference
 EDGE_FLOOR = 0.25  # smoothness weight across a strong contrast edge
 EDGE_CONTRAST = 0.1  # mean grey difference (of [0, 1]) that counts as an edge
 
@@ -314,7 +318,20 @@ def estimate_scene_flow(
     gain = min(gain, 16.0)
     u8 = [to_gray_u8(g, scale=gain) for g in grays]  # for OpenCV
     normed = [np.clip(g * np.float32(gain), 0.0, 1.0) for g in grays]
-    codes = tuple(census_transform(g) for g in normed)
+    # Census "similar" bands relative to the brightness (dark texture counts) and above
+    # the sensor noise (estimated on each image).
+    codes = tuple(
+        census_transform(
+            g,
+            threshold=census_thresholds(
+                g,
+                threshold=CENSUS_THRESHOLD,
+                noise=noise_level(g),
+                noise_factor=CENSUS_NOISE_FACTOR,
+            ),
+        )
+        for g in normed
+    )
     contrast = [float(np.std(g)) for g in normed]
     contrast_ok = min(contrast) >= 2.0 / 255.0
     if not contrast_ok:

@@ -4,13 +4,17 @@ Every superpixel of the reference view gets the plane that fits its true
 disparity at frame t and the rigid motion that maps its true 3D points at t to
 their true 3D points at t + 1 (found through the true flow and the true
 disparity at t + 1). Deblurring with it judges the blur model apart from
-motion estimation.
+motion estimation. Superpixels of the blurred image straddle object boundaries;
+:func:`split_at_discontinuities` cuts them where the true disparity or flow jumps,
+so that no segment has to fit two objects.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..geometry.camera import StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
@@ -22,6 +26,67 @@ from .model import SceneFlow
 def default_num_segments(shape: tuple[int, int]) -> int:
     """About 1200 segments at 640x480, scaled with the image area (paper supplement B)."""
     return max(16, round(1200 * shape[0] * shape[1] / (640 * 480)))
+
+
+def split_at_discontinuities(
+    labels: np.ndarray,
+    disparity: np.ndarray,
+    flow: np.ndarray,
+    *,
+    disparity_jump: float = 1.0,
+    flow_jump: float = 0.5,
+    min_size: int = 20,
+) -> np.ndarray:
+    """Cut segments where the true disparity or flow jumps between 4-neighbours.
+
+    Two neighbouring pixels stay connected when they share a label, their
+    disparities differ by at most ``disparity_jump`` px and their flows by at most
+    ``flow_jump`` px (pixels of unknown disparity connect to their segment);
+    every connected component becomes a segment. A component smaller than
+    ``min_size`` pixels (a sliver, too small for a rigid fit) joins the neighbouring
+    larger one whose disparity and flow differ least from it across their border.
+
+    Returns
+    -------
+    ndarray, int32, shape (H, W)
+        Labels consecutive from 0.
+    """
+    H, W = labels.shape
+    d = np.asarray(disparity, dtype=np.float64)
+    index = np.arange(H * W).reshape(H, W)
+    first, second, jump, same = [], [], [], []
+    for a, b in (
+        ((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+        ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+    ):
+        gap = np.hypot(*np.moveaxis(flow[a] - flow[b], -1, 0)) / flow_jump
+        with np.errstate(invalid="ignore"):
+            gap = np.maximum(gap, np.nan_to_num(np.abs(d[a] - d[b])) / disparity_jump)
+        first.append(index[a].ravel())
+        second.append(index[b].ravel())
+        jump.append(gap.ravel())
+        same.append((labels[a] == labels[b]).ravel() & (gap.ravel() <= 1))
+    first, second = np.concatenate(first), np.concatenate(second)
+    jump, same = np.concatenate(jump), np.concatenate(same)
+    graph = coo_matrix(
+        (np.ones(same.sum(), np.int8), (first[same], second[same])), shape=(H * W, H * W)
+    )
+    _, components = connected_components(graph, directed=False)
+    sizes = np.bincount(components)
+    # Slivers join the larger neighbouring part they differ least from.
+    ca, cb = components[first], components[second]
+    small = np.concatenate([ca, cb])
+    big = np.concatenate([cb, ca])
+    gap = np.concatenate([jump, jump])
+    pick = (sizes[small] < min_size) & (sizes[big] >= min_size)
+    order = np.lexsort((gap[pick], small[pick]))
+    small, big = small[pick][order], big[pick][order]
+    firsts = np.r_[True, small[1:] != small[:-1]] if small.size else small.astype(bool)
+    target = np.arange(sizes.size)
+    target[small[firsts]] = big[firsts]
+    components = target[components]
+    _, consecutive = np.unique(components, return_inverse=True)
+    return consecutive.reshape(H, W).astype(np.int32)
 
 
 def _sample_smooth(
@@ -80,7 +145,7 @@ def sceneflow_from_gt(
     d1 = _sample_smooth(np.asarray(disparity_next, dtype=np.float64), x1, y1, max_bend=0.1)
     d0 = np.asarray(disparity, dtype=np.float64)
     valid0 = np.isfinite(d0) & (d0 > 0)
-    valid = valid0 & inside & np.isfinite(d1) & (d1 > 0)
+    valid = valid0 & inside & np.isfinite(d1) & (d1 > 0) & ~_hidden_next(d0, x1, y1, valid0)
 
     num = int(labels.max()) + 1
     normals = np.zeros((num, 3))
@@ -101,7 +166,7 @@ def sceneflow_from_gt(
             abc = robust_fit_plane_disparity(xs[s][m0], ys[s][m0], ds[s][m0])
             normals[k] = plane_from_disparity_coefficients(camera, abc)
             has_plane[k] = True
-        if m.sum() >= 3:
+        if m.sum() >= 3 and not _degenerate(Ps[s][m]):
             R, T = robust_fit_rigid(Ps[s][m], Qs[s][m])
             M = np.eye(4)
             M[:3, :3], M[:3, 3] = R, T
@@ -110,6 +175,29 @@ def sceneflow_from_gt(
     _fill_from_nearest(labels, normals, has_plane)
     _fill_from_nearest(labels, twists, has_motion)
     return SceneFlow(camera, labels, normals, twists, ~valid)
+
+
+def _hidden_next(disparity, x1, y1, known, *, jump: float = 1.0) -> np.ndarray:
+    """Pixels whose point is covered at t + 1 by a nearer one landing on the same pixel.
+
+    Forward z-buffer of the disparity at t along the flow; a pixel is hidden if a
+    pixel more than ``jump`` px nearer lands within half a pixel of where it lands.
+    """
+    H, W = disparity.shape
+    inside = known & (x1 > -0.5) & (x1 < W - 0.5) & (y1 > -0.5) & (y1 < H - 0.5)
+    target = np.full((H, W), -1)
+    target[inside] = np.rint(y1[inside]).astype(int) * W + np.rint(x1[inside]).astype(int)
+    nearest = np.full(H * W, -np.inf)
+    np.maximum.at(nearest, target[inside], disparity[inside])
+    hidden = np.zeros((H, W), bool)
+    hidden[inside] = nearest[target[inside]] > disparity[inside] + jump
+    return hidden
+
+
+def _degenerate(points: np.ndarray, *, ratio: float = 0.05) -> bool:
+    """True if ``points`` (n, 3) lie nearly on a line: no unique rigid motion fits them."""
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    return bool(spread[1] <= ratio * spread[0])
 
 
 def _fill_from_nearest(labels: np.ndarray, params: np.ndarray, known: np.ndarray) -> None:

@@ -8,11 +8,13 @@ Energy (over the labelling ``f``: segment -> proposal)::
   (sampled) pixel of ``s`` in the left view at t is matched in the right view at
   t, the left view at t + 1 and the right view at t + 1 at the positions the
   plane and motion predict (see :func:`proposals.predict`), costs per view in
-  [0, 1] (:mod:`census`); where a position leaves the image, ``outside_cost``
-  scaled by the pixel's texture (twice its share of census neighbours that differ
-  from it, at most 1), i.e. about what a wrong match would cost there, so that
-  leaving the view is neither favoured in textured nor penalised in flat regions;
-  summed over the pixels of ``s`` (samples scaled to the full pixel count).
+  [0, 1] (:mod:`census`); where a position leaves the image, what a wrong match
+  would cost there (:func:`census.wrong_match_cost`: near 0 in clean flat
+  regions, about 0.5 in texture and in noise), so that leaving the view is
+  neither favoured nor penalised, also where noise makes every match cost as
+  much as a wrong one; where the point would lie behind a camera, the larger of
+  that and ``outside_cost`` per view; summed over the pixels of ``s`` (samples
+  scaled to the full pixel count).
 * ``V_st(p, q) = smoothness * w_st * length_st * min(truncation, dist_st(p, q))``
   (defaults ``smoothness = 2`` per boundary pixel and pixel, ``truncation = 4``
   px; ``w_st`` an optional edge weight in (0, 1]), with
@@ -42,7 +44,7 @@ import numba
 import numpy as np
 
 from ..geometry.camera import StereoCamera
-from .census import census_cost_at, texture_fraction
+from .census import census_cost_at, wrong_match_cost
 from .proposals import predict
 from .superpixels import SegmentGraph
 
@@ -113,8 +115,7 @@ def data_costs(
         Proposal indices, -1 for an empty slot.
     proposals : ProposalSet
     outside_cost : float
-        Cost of a view in which the predicted position leaves the image, for a
-        textured pixel (scaled down in flat regions).
+        Least cost per view of a prediction behind a camera (impossible).
 
     Returns
     -------
@@ -123,6 +124,7 @@ def data_costs(
     """
     lt, rt, lt1, rt1 = codes
     out = _data_costs(
+        wrong_match_cost(lt),
         lt,
         rt,
         lt1,
@@ -142,7 +144,9 @@ def data_costs(
 
 
 @numba.njit(cache=True, nogil=True)
-def _data_costs(lt, rt, lt1, rt1, samples, bounds, candidates, abc, R, T, K, Kinv, fb, outside):
+def _data_costs(
+    leave_costs, lt, rt, lt1, rt1, samples, bounds, candidates, abc, R, T, K, Kinv, fb, outside
+):
     num, width_c = candidates.shape
     width = lt.shape[1]
     out = np.zeros((num, width_c))
@@ -157,12 +161,12 @@ def _data_costs(lt, rt, lt1, rt1, samples, bounds, candidates, abc, R, T, K, Kin
                 y = flat // width
                 x = flat - y * width
                 code = lt[y, x]
-                # Leaving the image costs what a wrong match would here: nothing in
-                # flat regions, `outside` where the pixel has texture.
-                leave = outside * min(1.0, 2.0 * texture_fraction(code))
+                # Leaving the image costs what a wrong match would cost here.
+                leave = leave_costs[y, x]
+                impossible = max(leave, outside)
                 d0 = abc[p, 0] * x + abc[p, 1] * y + abc[p, 2]
                 if d0 <= 0.0:
-                    total += 3.0 * outside
+                    total += 3.0 * impossible
                     continue
                 c = census_cost_at(code, rt, x - d0, float(y))
                 total += leave if c < 0 else c
@@ -174,7 +178,7 @@ def _data_costs(lt, rt, lt1, rt1, samples, bounds, candidates, abc, R, T, K, Kin
                 qy = R[p, 1, 0] * rx + R[p, 1, 1] * ry + R[p, 1, 2] * rz + T[p, 1] * w
                 qz = R[p, 2, 0] * rx + R[p, 2, 1] * ry + R[p, 2, 2] * rz + T[p, 2] * w
                 if qz <= 1e-12:
-                    total += 2.0 * outside
+                    total += 2.0 * impossible
                     continue
                 x1 = (K[0, 0] * qx + K[0, 1] * qy + K[0, 2] * qz) / qz
                 y1 = (K[1, 0] * qx + K[1, 1] * qy + K[1, 2] * qz) / qz
