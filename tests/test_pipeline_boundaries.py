@@ -27,12 +27,9 @@ def test_gt_mask_keeps_mixed_pixels_at_zero_weight(scene):
         settings = DeblurSettings(boundary_weights=weights, boundary_mask="gt", **FAST)
         result = deblur_frame(scene, 1, settings=settings)
         assert np.all(result.result.weights[mixed] == 0)
-        if weights == "none":
-            np.testing.assert_array_equal(result.result.weights[~mixed], 1)
-            assert result.weight_steps == ()
-        else:
-            assert len(result.weight_steps) == FAST["num_irls"] - 1
-            assert np.all(result.result.weights_history[-1][mixed] == 0)
+        np.testing.assert_array_equal(result.result.weights[~mixed], 1)
+        assert result.weight_steps == ()
+        assert (result.trust is None) == (weights == "none")
 
 
 def test_alpha_auto_comes_from_the_blurred_frame(scene):
@@ -54,13 +51,32 @@ def test_paper_weights_start_from_the_occlusion_and_follow_eq5(scene):
     np.testing.assert_allclose(step.weights, expected, rtol=1e-5)
 
 
-def test_adaptive_weights_with_given_motion_match_a_fresh_run(scene):
-    settings = DeblurSettings(**FAST)  # adaptive weights and auto alpha are the defaults
+def test_adaptive_trust_with_given_motion_matches_a_fresh_run(scene):
+    settings = DeblurSettings(**FAST)  # adaptive trust and auto alpha are the defaults
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     given = deblur_frame(scene, 1, settings=settings, motion=motion)
     fresh = deblur_frame(scene, 1, settings=settings)
     np.testing.assert_array_equal(given.image, fresh.image)
-    assert given.result.weights.min() < 1  # the band around motion boundaries starts at 0
+    np.testing.assert_array_equal(given.result.weights, 1)
+    mixed = scene.read_gt_mixed("left", 1)
+    assert given.trust[mixed].mean() < given.trust[~mixed].mean()  # boundaries are distrusted
+
+
+def test_trust_uses_both_neighbouring_frames(scene):
+    from stereodeblur.deconv.trust import motion_trust
+
+    settings = DeblurSettings(**FAST)
+    blurred = scene.read_frame("left", 1)
+    motion = frame_motion(scene, 1, "left", settings, blurred)
+    result = deblur_frame(scene, 1, settings=settings, motion=motion)
+    occlusion = motion.sceneflow.occlusion
+    forward = motion_trust(
+        blurred, scene.read_frame("left", 2), motion.flow_forward, occlusion=occlusion
+    )
+    backward = motion_trust(
+        blurred, scene.read_frame("left", 0), motion.flow_backward, occlusion=occlusion
+    )
+    np.testing.assert_array_equal(result.trust, np.maximum(forward, backward))
 
 
 @pytest.mark.parametrize(

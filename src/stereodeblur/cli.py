@@ -94,14 +94,15 @@ def _add_deblur_options(p: argparse.ArgumentParser) -> None:
         "--boundary-weights",
         choices=["adaptive", "paper"],
         default="adaptive",
-        help="motion-boundary data weights: adaptive (default) or Eq. 5 as published",
+        help="motion boundaries: adaptive (default: keep the blurred frame where the motion "
+        "does not predict the neighbouring frames) or paper (Eq. 5 data weights as published)",
     )
     w.add_argument(
         "--no-boundary-weights",
         dest="boundary_weights",
         action="store_const",
         const="none",
-        help="no motion-boundary weights (w = 1)",
+        help="no motion-boundary handling (w = 1)",
     )
     g.add_argument(
         "--boundary-mask",

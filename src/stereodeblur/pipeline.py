@@ -65,12 +65,13 @@ class DeblurSettings:
         Superpixels of the scene flow; None scales 1200 at 640x480 with image area.
     seed : int
     boundary_weights : {'adaptive', 'paper', 'none'}
-        Motion-boundary data weights (Sec. 3, Eq. 5), updated every IRLS iteration:
-        ``'adaptive'`` (default) :class:`~stereodeblur.deconv.weights.AdaptiveWeights`
-        started from a band around the scene flow's motion boundaries and occlusions;
-        ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`)
-        started from the scene flow's occlusion mask; ``'none'`` ``w = 1``. Without a scene
-        flow (displacement kernels from optical flow) the weights start at 1.
+        Handling of the pixels the blur model cannot explain (motion boundaries, motion
+        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` and anchors the estimate
+        to the blurred frame where the motion fails to predict both neighbouring frames
+        (:mod:`stereodeblur.deconv.trust`); ``'paper'`` Eq. 5 as published
+        (:class:`~stereodeblur.deconv.weights.PaperWeights`, updated every IRLS
+        iteration) started from the scene flow's occlusion mask (from 1 without a scene
+        flow); ``'none'`` ``w = 1``.
     boundary_mask : {None, 'gt'}
         ``'gt'``: the scene's gt/mixed pixels get weight 0 throughout (the paper's
         masked experiment, Table 2), on top of ``boundary_weights``.
@@ -136,7 +137,8 @@ class FrameResult:
 
     ``alpha`` is the prior weight used; ``weight_steps`` the boundary-weight updates
     (:class:`~stereodeblur.deconv.weights.WeightsStep`: weights and the residual norm
-    they came from, per IRLS iteration), empty with fixed weights.
+    they came from, per IRLS iteration), empty with fixed weights; ``trust`` the trust in
+    the blur model per pixel (``boundary_weights='adaptive'``, else None).
     """
 
     index: int
@@ -147,6 +149,7 @@ class FrameResult:
     timings: dict = field(default_factory=dict)
     alpha: float | None = None
     weight_steps: tuple = ()
+    trust: np.ndarray | None = None
 
     @property
     def image(self) -> np.ndarray:
@@ -315,9 +318,9 @@ class _MaskedUpdate:
 
 
 def boundary_weighting(
-    scene, index: int, view: str, settings: DeblurSettings, motion: FrameMotion, exposure
+    scene, index: int, view: str, settings: DeblurSettings, motion: FrameMotion, blurred
 ):
-    """Initial data weights and the weight update (or None) of a run (see DeblurSettings).
+    """Data weights, weight update, anchor and trust of a run (see DeblurSettings).
 
     Returns
     -------
@@ -326,28 +329,37 @@ def boundary_weighting(
     update : callable or None
         For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
         (a masked update in ``.update.history``).
+    anchor, trust : ndarray, float32, shape (H, W), or None
+        For ``deblur_irls(anchor=...)``, and the trust it came from.
     """
-    from .deconv.weights import (
-        AdaptiveWeights,
-        PaperWeights,
-        boundary_band_width,
-        initial_weights_from_occlusion,
-        motion_boundary_band,
-    )
+    from .deconv.weights import PaperWeights, initial_weights_from_occlusion
 
     sf = motion.sceneflow
     shape = tuple(motion.flow_forward.shape[:2]) if sf is None else sf.shape
     weights = np.ones(shape, np.float32)
-    update = None
+    update = anchor = trust = None
     if settings.boundary_weights == "paper":
         update = PaperWeights()
         if sf is not None:
             weights = initial_weights_from_occlusion(sf.occlusion)
     elif settings.boundary_weights == "adaptive":
-        update = AdaptiveWeights()
-        if sf is not None:
-            band = motion_boundary_band(sf, boundary_band_width(sf, exposure))
-            weights = initial_weights_from_occlusion(band)
+        from .deconv.trust import motion_trust, trust_anchor
+
+        occlusion = None if sf is None else sf.occlusion
+        trust = motion_trust(
+            blurred,
+            scene.read_frame(view, motion.neighbour),
+            motion.flow_forward,
+            occlusion=occlusion,
+        )
+        other = 2 * index - motion.neighbour  # the frame on the other side, if any
+        if motion.flow_backward is not None and 0 <= other < scene.num_frames:
+            # What leaves or is covered on one side is seen on the other.
+            backward = motion_trust(
+                blurred, scene.read_frame(view, other), motion.flow_backward, occlusion=occlusion
+            )
+            trust = np.maximum(trust, backward)
+        anchor = trust_anchor(trust)
     if settings.boundary_mask == "gt":
         if not (hasattr(scene, "has_gt") and scene.has_gt("mixed", view, index)):
             where = scene.gt_path("mixed", view, index) if hasattr(scene, "gt_path") else "gt/"
@@ -356,7 +368,7 @@ def boundary_weighting(
         weights = weights * keep
         if update is not None:
             update = _MaskedUpdate(update, keep)
-    return weights, update
+    return weights, update, anchor, trust
 
 
 def deblur_frame(
@@ -391,7 +403,9 @@ def deblur_frame(
     timings["operator"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     alpha = resolve_alpha(settings, blurred)
-    initial, update = boundary_weighting(scene, index, view, settings, motion, scene.info.exposure)
+    initial, update, anchor, trust = boundary_weighting(
+        scene, index, view, settings, motion, blurred
+    )
     result = deblur_irls(
         blurred,
         operator,
@@ -400,8 +414,9 @@ def deblur_frame(
         num_irls=settings.num_irls,
         num_cg=settings.num_cg,
         update_weights=update,
+        anchor=anchor,
         progress=lambda n, total: say(f"frame {index} {view}: IRLS {n}/{total}"),
     )
     timings["deconvolution"] = time.perf_counter() - t0
     steps = tuple(getattr(getattr(update, "update", update), "history", ()))
-    return FrameResult(index, view, blurred, result, motion, timings, alpha, steps)
+    return FrameResult(index, view, blurred, result, motion, timings, alpha, steps, trust)

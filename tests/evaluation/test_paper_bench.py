@@ -86,14 +86,23 @@ def test_weight_statistics_count_low_weights_near_boundaries_and_flow_errors():
     previous = weights.copy()
     previous[0, :6] = 0.5  # six pixels changed by 0.5 in the last update
     result = SimpleNamespace(
-        result=SimpleNamespace(weights=weights, weights_history=(previous, weights))
+        result=SimpleNamespace(weights=weights, weights_history=(previous, weights)), trust=None
     )
     stats = weight_statistics(result, mixed, flow_error)
     assert stats["low_weight_percent"] == pytest.approx(100 * 7 / 600)
     assert stats["low_weight_explained_percent"] == pytest.approx(100 * 6 / 7)
     assert stats["changed_last_percent"] == pytest.approx(100 * 6 / 600)
-    fixed = SimpleNamespace(result=SimpleNamespace(weights=weights, weights_history=None))
+    fixed = SimpleNamespace(
+        result=SimpleNamespace(weights=weights, weights_history=None), trust=None
+    )
     assert weight_statistics(fixed, mixed, flow_error) == {}
+    ones = np.ones(shape, np.float32)
+    trusted = SimpleNamespace(
+        result=SimpleNamespace(weights=ones, weights_history=None), trust=weights
+    )
+    stats = weight_statistics(trusted, mixed, flow_error)
+    assert stats["low_weight_explained_percent"] == pytest.approx(100 * 6 / 7)
+    assert stats["changed_last_percent"] == 0
 
 
 def test_unknown_scene_is_a_one_line_error(tmp_path, capsys):

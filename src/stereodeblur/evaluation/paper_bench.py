@@ -25,9 +25,10 @@ the paper's three planar motions (upward, forward, forward_yaw), each noiseless
 and with noise of deviation 0.01 (``NAME_noisy``).
 
 Motion-boundary weight diagnostics of the full methods: of the pixels whose
-final weight is below 0.5, the share that lie within 3 px of gt/mixed or where
-the scene flow's endpoint error exceeds 1 px ("explained"); and the share of
-all pixels whose weight changed by more than 0.05 in the last IRLS iteration.
+final weight (ours: trust in the blur model) is below 0.5, the share that lie
+within 3 px of gt/mixed or where the scene flow's endpoint error exceeds 1 px
+("explained"); and the share of all pixels whose weight changed by more than
+0.05 in the last IRLS iteration.
 The alpha sweep (``--alpha-sweep``) deblurs with "ours (full)" at every alpha of
 :data:`ALPHA_SWEEP` and compares with ``alpha='auto'``.
 
@@ -274,13 +275,25 @@ def _border(shape) -> int:
 
 
 def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) -> dict:
-    """The weight diagnostics of a deblurring (module docstring), in percent."""
+    """The weight diagnostics of a deblurring (module docstring), in percent.
+
+    For the adaptive method the "weights" are its trust in the blur model (computed once,
+    before the IRLS, so nothing changes in the last iteration); for Eq. 5 the data weights.
+    """
     from scipy import ndimage
 
     history = result.result.weights_history
-    if not history:
+    if result.trust is not None:
+        final, changed = np.asarray(result.trust), np.zeros(mixed.shape, bool)
+    elif history:
+        final = np.asarray(result.result.weights)
+        changed = (
+            np.abs(np.asarray(history[-1]) - np.asarray(history[-2])) > CHANGE
+            if len(history) >= 2
+            else np.zeros(mixed.shape, bool)
+        )
+    else:
         return {}
-    final = np.asarray(result.result.weights)
     low = final < LOW_WEIGHT
     near = (
         ndimage.distance_transform_edt(~mixed) <= NEAR_MIXED_PX
@@ -288,11 +301,6 @@ def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) 
         else np.zeros_like(mixed)
     )
     explained = near if flow_error is None else near | (flow_error > FLOW_ERROR_PX)
-    changed = (
-        np.abs(np.asarray(history[-1]) - np.asarray(history[-2])) > CHANGE
-        if len(history) >= 2
-        else np.zeros_like(low)
-    )
     return {
         "low_weight_percent": float(100 * low.mean()),
         "low_weight_explained_percent": (
@@ -524,7 +532,7 @@ def table_metric(rows, metric: str) -> str:
 def table_weights(rows) -> str:
     """Weight diagnostics of the full methods (module docstring)."""
     lines = [
-        "| scene | ours: % w < 0.5 | of those: % near gt/mixed or flow error > 1 px "
+        "| scene | ours: % trust < 0.5 | of those: % near gt/mixed or flow error > 1 px "
         "| % changed > 0.05 in last iteration | paper: % w < 0.5 | of those explained "
         "| % changed in last iteration |",
         "|---|---:|---:|---:|---:|---:|---:|",
@@ -592,7 +600,7 @@ def summary(rows, *, sweep: bool) -> list[str]:
         explained = [_value(r, "ours-full", "low_weight_explained_percent") for r in group]
         changed = [_value(r, "ours-full", "changed_last_percent") for r in group]
         out.append(
-            f"object scenes, {label}: ours (full) weights < 0.5 explained by gt/mixed or flow "
+            f"object scenes, {label}: ours (full) trust < 0.5 explained by gt/mixed or flow "
             f"error: {np.nanmean(explained):.1f} % mean, {np.nanmin(explained):.1f} % worst; "
             f"changed > 0.05 in the last iteration: {np.nanmean(changed):.2f} % mean, "
             f"{np.nanmax(changed):.2f} % worst"

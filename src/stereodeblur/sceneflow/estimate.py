@@ -50,7 +50,7 @@ import numpy as np
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError
-from ..geometry.camera import StereoCamera
+from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
 from ..geometry.rigid import se3_log
 from .census import census_cost, census_thresholds, census_transform, noise_level
@@ -66,7 +66,7 @@ from .proposals import (
     global_proposals,
     predict,
 )
-from .refine import refine_proposals
+from .refine import blur_length_change, cross_blur, refine_proposals
 from .superpixels import SegmentGraph, default_num_segments, segment_graph, slic_segments
 
 MIN_DISPARITY = 0.05  # px: planes are kept in front of the camera over their segment
@@ -80,6 +80,8 @@ CENSUS_THRESHOLD = 0.008  # census "similar" band at a quarter of full scale (cl
 CENSUS_NOISE_FACTOR = 1.0  # ... at least the std of the noise of a pixel difference
 EDGE_FLOOR = 0.25  # smoothness weight across a strong contrast edge
 EDGE_CONTRAST = 0.1  # mean grey difference (of [0, 1]) that counts as an edge
+BLUR_CHANGE = 1.0  # px: blur length change t -> t + 1 that calls for balancing the blur ...
+BLUR_CHANGE_SHARE = 0.1  # ... on at least this share of the pixels
 
 
 class SceneFlowWarning(UserWarning):
@@ -270,6 +272,7 @@ def estimate_scene_flow(
     *,
     num_segments: int | None = None,
     seed: int = 0,
+    exposure: Exposure | None = None,
     progress: Callable[[str, float], None] | None = None,
     debug_dir: str | Path | None = None,
 ) -> SceneFlowEstimate:
@@ -285,6 +288,10 @@ def estimate_scene_flow(
         image area (paper, supplement B).
     seed : int
         Seed of the random choices (RANSAC samples, expansion order).
+    exposure : Exposure, optional
+        Frame rate and exposure time. If given and the estimated blur changes
+        between the frames (a fast approach), the refinement is repeated on
+        images whose blur has been balanced (:func:`refine.cross_blur`).
     progress : callable, optional
         Called as ``progress(stage, fraction_done)`` after every stage.
     debug_dir : path, optional
@@ -516,7 +523,21 @@ def estimate_scene_flow(
     # 6. Continuous refinement of the chosen proposals.
     used, chosen_local = np.unique(chosen, return_inverse=True)
     final = ProposalSet(props.abc[used], props.R[used], props.T[used])
-    final = refine_proposals(camera, normed, chosen_local[labels], final)
+    groups = chosen_local[labels]
+    final = refine_proposals(camera, normed, groups, final)
+    if exposure is not None and exposure.duty_cycle > 0:
+        blur_change = blur_length_change(camera, groups, final, duty_cycle=exposure.duty_cycle)
+        if np.mean(np.abs(blur_change) > BLUR_CHANGE) >= BLUR_CHANGE_SHARE:
+            # Differently blurred frames bias the match: give all four the same blur
+            # and refine again, now led by the images alone.
+            # (Unclipped: blurring commutes with a gain, not with clipping.)
+            balanced, valid = cross_blur(
+                camera, [g * np.float32(gain) for g in grays], groups, final,
+                duty_cycle=exposure.duty_cycle,
+            )
+            final = refine_proposals(
+                camera, balanced, groups, final, plane_prior=0.0, motion_prior=0.0, valid=valid
+            )
     seg_abc = _keep_in_front(final.abc[chosen_local], graph, x_all, y_all)
     M = np.tile(np.eye(4), (L, 1, 1))
     M[:, :3, :3] = final.R[chosen_local]

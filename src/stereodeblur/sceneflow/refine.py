@@ -32,6 +32,8 @@ from ..geometry.camera import StereoCamera
 from ..geometry.rigid import so3_exp
 from .fusion import ProposalSet
 
+VALID_MARGIN = 4  # px: distance of a match from the invalid parts of an image, for use
+
 
 def normalise_contrast(image: np.ndarray, *, sigma: float = 4.0, floor: float = 0.02) -> np.ndarray:
     """``(I - G*I) / sqrt(G*(I - G*I)^2 + floor^2)``, then a light smoothing, float64."""
@@ -79,6 +81,8 @@ def _accumulate(
     targets,
     grads_x,
     grads_y,
+    ref_valid,
+    target_valid,
     abc,
     R,
     T,
@@ -106,6 +110,8 @@ def _accumulate(
         k = groups[n]
         x = xs[n]
         y = ys[n]
+        if not ref_valid[int(y), int(x)]:
+            continue
         rx = Kinv[0, 0] * x + Kinv[0, 1] * y + Kinv[0, 2]
         ry = Kinv[1, 0] * x + Kinv[1, 1] * y + Kinv[1, 2]
         rz = Kinv[2, 0] * x + Kinv[2, 1] * y + Kinv[2, 2]
@@ -204,6 +210,9 @@ def _accumulate(
             if not _bilinear(targets[v], grads_x[v], grads_y[v], px, py, sample):
                 energy[k] += 1.0
                 continue
+            if not target_valid[v, int(py + 0.5), int(px + 0.5)]:
+                energy[k] += 1.0
+                continue
             r = sample[0] - reference
             a = r / scale
             energy[k] += np.log1p(a * a)
@@ -243,6 +252,7 @@ def refine_proposals(
     scale: float = 0.25,
     plane_prior: float = 0.1,
     motion_prior: float = 1.0,
+    valid: list[np.ndarray] | None = None,
 ) -> ProposalSet:
     """Refine every proposal on the pixels that chose it (Levenberg-Marquardt, 9 parameters).
 
@@ -264,6 +274,9 @@ def refine_proposals(
     motion_prior : float
         Weight of the squared change of the position at t + 1 and of the
         disparity change from t to t + 1 (pixels).
+    valid : list of 4 ndarray of bool, shape (H, W), optional
+        Pixels of each image that may be used (e.g. from :func:`cross_blur`);
+        default all.
 
     Returns
     -------
@@ -278,9 +291,18 @@ def refine_proposals(
     gy = np.stack([g[0] for g in grads])
     gx = np.stack([g[1] for g in grads])
     height, width = groups.shape
+    if valid is None:
+        valid = [np.ones((height, width), dtype=bool)] * 4
+    ref_valid = np.ascontiguousarray(valid[0], dtype=np.bool_)
+    target_valid = np.ascontiguousarray(np.stack(valid[1:]), dtype=np.bool_)
     yy, xx = np.mgrid[0:height:step, 0:width:step]
     gs = groups[yy, xx].ravel().astype(np.int64)
     xs, ys = xx.ravel().astype(np.float64), yy.ravel().astype(np.float64)
+    if not all(np.all(v) for v in valid):
+        # A fixed set of pixels: those whose three matches start well inside the valid
+        # parts (pixels entering or leaving them would make the energy jump).
+        keep = _usable(camera, proposals, gs, xs, ys, ref_valid, target_valid, VALID_MARGIN)
+        gs, xs, ys = gs[keep], xs[keep], ys[keep]
     fb = camera.fx * camera.baseline
     abc0, R0, T0 = proposals.abc.copy(), proposals.R.copy(), proposals.T.copy()
     abc, R, T = abc0.copy(), R0.copy(), T0.copy()
@@ -297,6 +319,8 @@ def refine_proposals(
             targets,
             gx,
             gy,
+            ref_valid,
+            target_valid,
             a,
             r,
             t,
@@ -329,3 +353,213 @@ def refine_proposals(
         damping = np.where(better, damping * 0.3, damping * 10)
         current, JtJ, Jtr = run(abc, R, T, True)
     return ProposalSet(abc, R, T)
+
+
+# --------------------------------------------------------------------------- blur balance
+
+
+@numba.njit(cache=True, nogil=True)
+def _average_along(image, group_map, homographies):
+    """Mean of ``image`` at ``H_s x`` over the instants s of each pixel's group; validity."""
+    height, width = image.shape
+    num_samples = homographies.shape[1]
+    out = np.zeros((height, width), dtype=np.float32)
+    valid = np.ones((height, width), dtype=np.bool_)
+    for y in range(height):
+        for x in range(width):
+            k = group_map[y, x]
+            total = 0.0
+            for s in range(num_samples):
+                H = homographies[k, s]
+                z = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+                if z <= 1e-12:
+                    valid[y, x] = False
+                    break
+                px = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / z
+                py = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / z
+                if not (px >= 0.0 and py >= 0.0 and px <= width - 1 and py <= height - 1):
+                    valid[y, x] = False
+                    break
+                x0 = min(int(px), width - 2)
+                y0 = min(int(py), height - 2)
+                fx = px - x0
+                fy = py - y0
+                total += (1 - fy) * ((1 - fx) * image[y0, x0] + fx * image[y0, x0 + 1]) + fy * (
+                    (1 - fx) * image[y0 + 1, x0] + fx * image[y0 + 1, x0 + 1]
+                )
+            out[y, x] = total / num_samples if valid[y, x] else image[y, x]
+    return out, valid
+
+
+def _splat_groups(groups: np.ndarray, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+    """Group map of another image: each reference pixel's group at its rounded position
+    there, holes filled from the nearest assigned pixel."""
+    height, width = groups.shape
+    ix = np.rint(px).astype(np.int64)
+    iy = np.rint(py).astype(np.int64)
+    ok = np.isfinite(px) & np.isfinite(py) & (ix >= 0) & (iy >= 0) & (ix < width) & (iy < height)
+    ok &= (np.abs(px) < 1e9) & (np.abs(py) < 1e9)
+    out = np.full((height, width), -1, dtype=np.int64)
+    out[iy[ok], ix[ok]] = groups[ok]
+    if (out < 0).all():
+        return groups.astype(np.int64)
+    hole = out < 0
+    if hole.any():
+        _, (ny, nx) = ndimage.distance_transform_edt(hole, return_indices=True)
+        out = out[ny, nx]
+    return out
+
+
+def cross_blur(
+    camera: StereoCamera,
+    images: list[np.ndarray],
+    groups: np.ndarray,
+    proposals: ProposalSet,
+    *,
+    duty_cycle: float,
+    num_samples: int | None = None,
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Give the four frames the same blur: each frame t image blurred by frame t + 1's motion
+    and vice versa, as predicted by the proposals.
+
+    Frame t shows the sharp image blurred along the motion during its exposure,
+    frame t + 1 along the (different) motion during its own; a fast approach makes
+    the second blur longer. Matching such images directly is biased. Blurring each
+    image once more with the other frame's blur (mapped into its own pixels by
+    the proposal's plane and motion) gives, to first order, both the same blur::
+
+        C_t(x)    = mean_s' B_t(G_{1+s'} G_1^-1 x)
+        C_t+1(y)  = mean_s  B_t+1(G_1^-1 G_s G_1 y)
+
+    with ``G_u`` the homography from the pixels at instant ``u`` (fractions of
+    the frame interval from the centre of frame t) to those at the centre of
+    frame t (:func:`~stereodeblur.geometry.homography.trajectory_homographies`),
+    per view. Pixels of the right view and of frame t + 1 take the proposal of
+    the reference pixel that the proposals map onto them.
+
+    Parameters
+    ----------
+    camera : StereoCamera
+    images : list of 4 ndarray, shape (H, W)
+        Grey left t, right t, left t + 1, right t + 1.
+    groups : ndarray of int, shape (H, W)
+        Proposal of every reference pixel (left view, frame t).
+    proposals : ProposalSet
+    duty_cycle : float
+        Exposure time over frame interval, in (0, 1].
+    num_samples : int, optional
+        Instants per exposure; default from the longest predicted blur (one per
+        2 pixels, 4 to 32).
+
+    Returns
+    -------
+    images : list of 4 ndarray, shape (H, W), float32
+    valid : list of 4 ndarray of bool, shape (H, W)
+        Pixels whose blur stays inside the image (the others keep their value).
+    """
+    from ..geometry.camera import Exposure
+    from ..geometry.homography import trajectory_homographies
+    from ..geometry.plane import plane_from_disparity_coefficients
+    from ..geometry.rigid import se3_log
+    from .proposals import predict
+
+    groups = np.asarray(groups, dtype=np.int64)
+    height, width = groups.shape
+    num = len(proposals)
+    M = np.tile(np.eye(4), (num, 1, 1))
+    M[:, :3, :3] = proposals.R
+    M[:, :3, 3] = proposals.T
+    twists = np.nan_to_num(se3_log(M))
+    normals = plane_from_disparity_coefficients(camera, proposals.abc)
+    yy, xx = np.mgrid[0:height, 0:width]
+    x, y = xx.ravel().astype(np.float64), yy.ravel().astype(np.float64)
+    g = groups.ravel()
+    d0, x1, y1, d1 = predict(camera, proposals.abc[g], proposals.R[g], proposals.T[g], x, y)
+    if num_samples is None:
+        length = np.hypot(x1 - x, y1 - y) * duty_cycle
+        longest = float(np.nanmax(length)) if np.isfinite(length).any() else 0.0
+        num_samples = int(np.clip(np.ceil(longest / 2.0), 4, 32))
+    # Fractions of an exposure of length duty_cycle centred on 0.
+    fractions = Exposure(1.0, duty_cycle).sample_fractions(num_samples)
+    maps = {
+        "left_t": groups,
+        "right_t": _splat_groups(groups, (x - d0).reshape(height, width), y.reshape(height, width)),
+        "left_t1": _splat_groups(groups, x1.reshape(height, width), y1.reshape(height, width)),
+        "right_t1": _splat_groups(
+            groups, (x1 - d1).reshape(height, width), y1.reshape(height, width)
+        ),
+    }
+    out, valid = [None] * 4, [None] * 4
+    for view, (i_t, i_t1) in (("left", (0, 2)), ("right", (1, 3))):
+        G = trajectory_homographies(
+            camera, normals, twists, np.concatenate([fractions, 1.0 + fractions, [1.0]]), view
+        )
+        S = len(fractions)
+        Gs, G1s, G1 = G[:, :S], G[:, S : 2 * S], G[:, -1]
+        G1_inv = np.linalg.inv(G1)
+        for i, H in (
+            (i_t, G1s @ G1_inv[:, None]),
+            (i_t1, G1_inv[:, None] @ Gs @ G1[:, None]),
+        ):
+            name = ("left_t", "right_t", "left_t1", "right_t1")[i]
+            blurred, ok = _average_along(
+                np.ascontiguousarray(images[i], dtype=np.float32),
+                np.ascontiguousarray(maps[name]),
+                np.ascontiguousarray(H),
+            )
+            out[i], valid[i] = blurred, ok
+    return out, valid
+
+
+def blur_length_change(
+    camera: StereoCamera, groups: np.ndarray, proposals: ProposalSet, *, duty_cycle: float
+) -> np.ndarray:
+    """Length of a reference pixel's blur path in frame t + 1 minus that in frame t (pixels)."""
+    from ..geometry.rigid import se3_exp, se3_log
+
+    groups = np.asarray(groups, dtype=np.int64)
+    height, width = groups.shape
+    num = len(proposals)
+    M = np.tile(np.eye(4), (num, 1, 1))
+    M[:, :3, :3] = proposals.R
+    M[:, :3, 3] = proposals.T
+    twists = np.nan_to_num(se3_log(M))
+    yy, xx = np.mgrid[0:height, 0:width]
+    x, y = xx.ravel().astype(np.float64), yy.ravel().astype(np.float64)
+    g = groups.ravel()
+    abc = proposals.abc[g]
+    d0 = np.maximum(abc[:, 0] * x + abc[:, 1] * y + abc[:, 2], 1e-6)
+    depth = camera.fx * camera.baseline / d0
+    P = (camera.K_inv @ np.stack([x, y, np.ones_like(x)]) * depth).T
+    half = duty_cycle / 2
+    positions = []
+    for u in (-half, half, 1 - half, 1 + half):
+        Mu = se3_exp(u * twists)[g]
+        Q = np.einsum("nij,nj->ni", Mu[:, :3, :3], P) + Mu[:, :3, 3]
+        z = np.where(Q[:, 2] > 1e-9, Q[:, 2], np.nan)
+        positions.append(np.stack([camera.fx * Q[:, 0] / z, camera.K[1, 1] * Q[:, 1] / z], axis=1))
+    length_t = np.linalg.norm(positions[1] - positions[0], axis=1)
+    length_t1 = np.linalg.norm(positions[3] - positions[2], axis=1)
+    return np.nan_to_num(length_t1 - length_t).reshape(height, width)
+
+
+def _usable(camera, proposals, groups, x, y, ref_valid, target_valid, margin):
+    """Reference pixels valid themselves whose three predicted matches lie ``margin``
+    pixels inside the valid parts of the other images."""
+    from .proposals import predict
+
+    inner = [ndimage.binary_erosion(v, iterations=margin, border_value=0) for v in target_valid]
+    d0, x1, y1, d1 = predict(
+        camera, proposals.abc[groups], proposals.R[groups], proposals.T[groups], x, y
+    )
+    keep = ref_valid[y.astype(np.int64), x.astype(np.int64)].copy()
+    height, width = ref_valid.shape
+    for mask, px, py in zip(inner, (x - d0, x1, x1 - d1), (y, y1, y1), strict=True):
+        ok = np.isfinite(px) & np.isfinite(py)
+        ix = np.clip(np.rint(np.where(ok, px, -1)), -1, width).astype(np.int64)
+        iy = np.clip(np.rint(np.where(ok, py, -1)), -1, height).astype(np.int64)
+        ok &= (ix >= 0) & (iy >= 0) & (ix < width) & (iy < height)
+        inside = np.zeros_like(ok)
+        inside[ok] = mask[iy[ok], ix[ok]]
+        keep &= inside
+    return keep

@@ -1,0 +1,169 @@
+"""Trust in the blur model from the motion's temporal consistency, and the IRLS anchor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from skimage import data, transform
+
+from stereodeblur.blur.operator import SparseBlur
+from stereodeblur.deconv import deblur_irls
+from stereodeblur.deconv.noise import auto_alpha
+from stereodeblur.deconv.trust import motion_trust, trust_anchor
+from stereodeblur.errors import InputError
+from stereodeblur.evaluation.metrics import psnr
+
+SHAPE = (72, 96)
+
+
+def _texture(name="astronaut"):
+    image = getattr(data, name)() / 255.0
+    return transform.resize(image, (*SHAPE, 3), anti_aliasing=True).astype(np.float32)
+
+
+def _shift(image, dx, dy=0):
+    """``out(y, x) = image(y - dy, x - dx)``, clamped at the borders."""
+    ys = np.clip(np.arange(image.shape[0]) - dy, 0, image.shape[0] - 1)
+    xs = np.clip(np.arange(image.shape[1]) - dx, 0, image.shape[1] - 1)
+    return image[ys][:, xs]
+
+
+def test_an_exact_translation_is_trusted_where_it_stays_in_view():
+    frame = _texture()
+    following = _shift(frame, 3, 2)
+    flow = np.broadcast_to(np.array([3.0, 2.0]), (*SHAPE, 2))
+    trust = motion_trust(frame, following, flow)
+    assert trust.dtype == np.float32 and trust.shape == SHAPE
+    inside = np.zeros(SHAPE, bool)
+    inside[:-2, :-3] = True
+    assert np.all(trust[~inside] == 0)  # the flow leaves the view
+    assert trust[8:-8, 8:-8].min() > 0.99
+
+
+def test_a_wrong_flow_is_not_trusted_and_only_there():
+    frame = _texture()
+    following = _shift(frame, 3, 0)
+    flow = np.zeros((*SHAPE, 2))
+    flow[..., 0] = 3.0
+    flow[20:50, 30:60, 0] = -2.0  # 5 px off
+    trust = motion_trust(frame, following, flow)
+    assert np.median(trust[25:45, 35:55]) < 0.5
+    away = np.ones(SHAPE, bool)
+    away[12:58, 22:68] = False
+    away[:, -6:] = False
+    assert np.mean(trust[away] > 0.95) > 0.95
+
+
+@pytest.mark.parametrize("sigma", [0.01, 0.02])
+def test_noise_alone_leaves_trust_high(sigma):
+    rng = np.random.default_rng(4)
+    frame = _texture()
+    following = _shift(frame, 2, 0)
+    noisy = [np.clip(f + rng.normal(0, sigma, f.shape), 0, 1) for f in (frame, following)]
+    flow = np.zeros((*SHAPE, 2))
+    flow[..., 0] = 2.0
+    trust = motion_trust(*noisy, flow)
+    assert np.mean(trust[:, :-4] > 0.75) > 0.95
+
+
+def test_occlusion_is_not_trusted():
+    frame = _texture()
+    occlusion = np.zeros(SHAPE, bool)
+    occlusion[10:20, 10:20] = True
+    trust = motion_trust(frame, frame, np.zeros((*SHAPE, 2)), occlusion=occlusion)
+    assert np.all(trust[occlusion] == 0)
+    near = np.zeros(SHAPE, bool)
+    near[4:26, 4:26] = True
+    assert trust[near & ~occlusion].max() < 1 and trust[~near].min() > 0.99
+
+
+def test_anchor_values():
+    np.testing.assert_allclose(
+        trust_anchor(np.array([[0.0, 0.5, 1.0]]), strength=0.2), [[0.2, 0.1, 0.0]]
+    )
+
+
+def moving_disc(sigma, seed=0, step=10, duty=0.8):
+    """A textured disc moving ``step`` px per frame to the right over a static background.
+
+    Frames t and t + 1 average 9 exact instants over the exposure (``duty`` of the frame
+    interval); the blur operator of frame t gives every pixel its layer's blur at the
+    reference instant (right away from the boundary, wrong where disc and background mix).
+    Returns ``(sharp_t, blurred_t, blurred_t1, flow, operator)``.
+    """
+    height, width = SHAPE
+    background, foreground = _texture("astronaut"), _texture("coffee")
+    ys, xs = np.mgrid[0:height, 0:width]
+    disc = (ys - 36) ** 2 / 18**2 + (xs - 40) ** 2 / 22**2 <= 1
+    instants = np.linspace(-duty / 2, duty / 2, 9) * step
+    rng = np.random.default_rng(seed)
+    blurred = []
+    for start in (0, step):
+        frames = []
+        for s in instants:
+            dx = int(round(start + s))
+            moved = _shift(disc, dx)
+            frames.append(np.where(moved[..., None], _shift(foreground, dx), background))
+        noise = rng.normal(0.0, sigma, background.shape)
+        blurred.append(np.clip(np.mean(frames, axis=0) + noise, 0, 1).astype(np.float32))
+    sharp = np.where(disc[..., None], foreground, background).astype(np.float32)
+    flow = np.zeros((*SHAPE, 2))
+    flow[disc, 0] = step
+    taps = np.where(disc[..., None], np.round(instants).astype(int), 0)
+    rows = np.broadcast_to(np.arange(height * width).reshape(SHAPE)[..., None], taps.shape)
+    cols = ys[..., None] * width + np.clip(xs[..., None] - taps, 0, width - 1)
+    matrix = sp.csr_matrix(
+        (np.full(cols.size, 1.0 / instants.size), (rows.ravel(), cols.ravel())),
+        shape=(height * width, height * width),
+        dtype=np.float32,
+    )
+    return sharp, blurred[0], blurred[1], flow, SparseBlur(matrix, SHAPE)
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.01])
+def test_the_anchor_keeps_motion_boundaries_from_ruining_the_deblurring(sigma):
+    sharp, blurred, following, flow, blur = moving_disc(sigma)
+    alpha = auto_alpha(blurred)
+    trust = motion_trust(blurred, following, flow)
+    anchored = psnr(
+        deblur_irls(blurred, blur, alpha=alpha, anchor=trust_anchor(trust)).image, sharp
+    )
+    plain = psnr(deblur_irls(blurred, blur, alpha=alpha).image, sharp)
+    # Trust as data weights leaves the untrusted pixels to the prior: worse than the anchor.
+    weighted = psnr(deblur_irls(blurred, blur, alpha=alpha, weights=trust).image, sharp)
+    assert anchored > plain + 0.3
+    assert anchored > weighted + 0.5
+    assert anchored > psnr(blurred, sharp) + 0.8
+
+
+def test_a_strong_anchor_holds_the_estimate_at_the_blurred_frame():
+    sharp, blurred, _, _, blur = moving_disc(0.0)
+    anchor = np.zeros(SHAPE, np.float32)
+    anchor[:36] = 1e4  # the upper half of the disc
+    result = deblur_irls(blurred, blur, alpha=1e-4, num_irls=3, anchor=anchor)
+    np.testing.assert_allclose(result.image[:36], blurred[:36], atol=1e-3)
+    assert np.abs(result.image - blurred)[40:54, 25:55].max() > 0.05  # deblurred below
+    energies = [it.energy for it in result.history]
+    assert all(b <= a * (1 + 1e-5) for a, b in zip(energies, energies[1:], strict=False))
+    zero = deblur_irls(blurred, blur, alpha=1e-4, num_irls=2, anchor=np.zeros(SHAPE))
+    plain = deblur_irls(blurred, blur, alpha=1e-4, num_irls=2)
+    np.testing.assert_array_equal(zero.image, plain.image)
+
+
+def test_bad_inputs():
+    frame = _texture()
+    with pytest.raises(InputError):
+        motion_trust(frame, frame[:10], np.zeros((*SHAPE, 2)))
+    with pytest.raises(InputError):
+        motion_trust(frame, frame, np.zeros((*SHAPE, 2)), scale=-1.0)
+    with pytest.raises(InputError):
+        motion_trust(frame, frame, np.zeros((*SHAPE, 2)), occlusion=np.zeros((3, 3), bool))
+    with pytest.raises(InputError):
+        trust_anchor(np.ones(SHAPE), strength=np.nan)
+    with pytest.raises(InputError):
+        deblur_irls(
+            frame,
+            SparseBlur(sp.identity(frame[..., 0].size, format="csr"), SHAPE),
+            anchor=-np.ones(SHAPE),
+        )
