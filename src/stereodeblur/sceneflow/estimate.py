@@ -80,8 +80,11 @@ CENSUS_THRESHOLD = 0.008  # census "similar" band at a quarter of full scale (cl
 CENSUS_NOISE_FACTOR = 1.0  # ... at least the std of the noise of a pixel difference
 EDGE_FLOOR = 0.25  # smoothness weight across a strong contrast edge
 EDGE_CONTRAST = 0.1  # mean grey difference (of [0, 1]) that counts as an edge
-BLUR_CHANGE = 1.0  # px: blur length change t -> t + 1 that calls for balancing the blur ...
-BLUR_CHANGE_SHARE = 0.1  # ... on at least this share of the pixels
+# Balancing the blur doubles it (weaker data), so it is done only where the blur's length
+# changes strongly from t to t + 1 (relative to the longer blur, at least 1 px) ...
+BLUR_CHANGE = 0.15
+BLUR_CHANGE_SHARE = 0.5  # ... on at least this share of the pixels
+BALANCED_PRIOR = 0.0  # prior weights of the refinement on blur-balanced images
 
 
 class SceneFlowWarning(UserWarning):
@@ -526,17 +529,28 @@ def estimate_scene_flow(
     groups = chosen_local[labels]
     final = refine_proposals(camera, normed, groups, final)
     if exposure is not None and exposure.duty_cycle > 0:
-        blur_change = blur_length_change(camera, groups, final, duty_cycle=exposure.duty_cycle)
+        blur_change = blur_length_change(
+            camera, groups, final, duty_cycle=exposure.duty_cycle, relative=True
+        )
         if np.mean(np.abs(blur_change) > BLUR_CHANGE) >= BLUR_CHANGE_SHARE:
             # Differently blurred frames bias the match: give all four the same blur
             # and refine again, now led by the images alone.
             # (Unclipped: blurring commutes with a gain, not with clipping.)
             balanced, valid = cross_blur(
-                camera, [g * np.float32(gain) for g in grays], groups, final,
+                camera,
+                [g * np.float32(gain) for g in grays],
+                groups,
+                final,
                 duty_cycle=exposure.duty_cycle,
             )
             final = refine_proposals(
-                camera, balanced, groups, final, plane_prior=0.0, motion_prior=0.0, valid=valid
+                camera,
+                balanced,
+                groups,
+                final,
+                plane_prior=BALANCED_PRIOR,
+                motion_prior=BALANCED_PRIOR,
+                valid=valid,
             )
     seg_abc = _keep_in_front(final.abc[chosen_local], graph, x_all, y_all)
     M = np.tile(np.eye(4), (L, 1, 1))

@@ -512,9 +512,15 @@ def cross_blur(
 
 
 def blur_length_change(
-    camera: StereoCamera, groups: np.ndarray, proposals: ProposalSet, *, duty_cycle: float
+    camera: StereoCamera,
+    groups: np.ndarray,
+    proposals: ProposalSet,
+    *,
+    duty_cycle: float,
+    relative: bool = False,
 ) -> np.ndarray:
-    """Length of a reference pixel's blur path in frame t + 1 minus that in frame t (pixels)."""
+    """Length of a reference pixel's blur path in frame t + 1 minus that in frame t (pixels;
+    if ``relative``, over the longer of the two or 1 pixel)."""
     from ..geometry.rigid import se3_exp, se3_log
 
     groups = np.asarray(groups, dtype=np.int64)
@@ -540,7 +546,10 @@ def blur_length_change(
         positions.append(np.stack([camera.fx * Q[:, 0] / z, camera.K[1, 1] * Q[:, 1] / z], axis=1))
     length_t = np.linalg.norm(positions[1] - positions[0], axis=1)
     length_t1 = np.linalg.norm(positions[3] - positions[2], axis=1)
-    return np.nan_to_num(length_t1 - length_t).reshape(height, width)
+    change = np.nan_to_num(length_t1 - length_t)
+    if relative:
+        change = change / np.maximum(np.nan_to_num(np.maximum(length_t, length_t1)), 1.0)
+    return change.reshape(height, width)
 
 
 def _usable(camera, proposals, groups, x, y, ref_valid, target_valid, margin):
