@@ -559,7 +559,11 @@ def build_parser() -> argparse.ArgumentParser:
         "Middlebury motorcycle pair as a static clip.",
     )
     q.add_argument("--sizes", default="640x480", help="comma-separated WIDTHxHEIGHT")
-    q.add_argument("--scenes", help="comma-separated planar motion names (default: all)")
+    q.add_argument(
+        "--scenes",
+        help="comma-separated planar motions and object scenes, NAME_noisy for the noisy "
+        "variant (default: every planar motion and noiseless object scene)",
+    )
     q.add_argument("--frame", type=int, default=1, help="frame whose motion is estimated")
     q.add_argument("--work", default="bench-sceneflow", help="folder for scenes and results")
     q.add_argument("--no-motorcycle", action="store_true", help="skip the motorcycle check")

@@ -62,7 +62,34 @@ def test_blur_length_change_of_an_approach_and_a_sideways_motion():
     h = DUTY / 2
     expected = (pos(1 + h) - pos(1 - h)) - (pos(h) - pos(-h))
     np.testing.assert_allclose(change, expected, atol=1e-6)
+    longer = np.maximum(pos(1 + h) - pos(1 - h), pos(h) - pos(-h))
+    relative = blur_length_change(
+        CAMERA, groups, _proposal(APPROACH), duty_cycle=DUTY, relative=True
+    )
+    np.testing.assert_allclose(relative, expected / np.maximum(longer, 1.0), atol=1e-6)
     sideways = blur_length_change(
         CAMERA, groups, _proposal(np.array([0.1, 0.0, 0.0, 0.0, 0.0, 0.0])), duty_cycle=DUTY
     )
     np.testing.assert_allclose(sideways, 0.0, atol=1e-9)
+
+
+def test_refinement_ignores_pixels_marked_invalid():
+    from stereodeblur.sceneflow.refine import refine_proposals
+
+    twist = np.array([0.05, -0.03, -0.08, 0.01, 0.015, -0.01])
+    images = list(frames(render_views(NORMAL, twist, num_instants=5)))
+    M = se3_exp(twist + np.array([0.01, 0, 0.01, 0, 0.002, 0]))
+    start = ProposalSet(
+        disparity_coefficients(CAMERA, NORMAL[None] * 1.02), M[None, :3, :3], M[None, :3, 3]
+    )
+    valid = [np.ones(SIZE, bool) for _ in range(4)]
+    valid[1][:, :45] = False  # corruption below spreads ~20 px by the contrast normalisation
+    corrupted = [im.copy() for im in images]
+    corrupted[1][:, :20] = np.random.default_rng(1).random((SIZE[0], 20))
+    groups = np.zeros(SIZE, np.int64)
+    clean = refine_proposals(CAMERA, images, groups, start, valid=valid)
+    noisy = refine_proposals(CAMERA, corrupted, groups, start, valid=valid)
+    unmasked = refine_proposals(CAMERA, corrupted, groups, start)
+    np.testing.assert_allclose(noisy.abc, clean.abc, rtol=1e-5, atol=1e-8)
+    np.testing.assert_allclose(noisy.T, clean.T, rtol=1e-5, atol=1e-8)
+    assert not np.allclose(unmasked.abc, clean.abc, rtol=1e-3, atol=1e-5)

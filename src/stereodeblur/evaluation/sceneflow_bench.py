@@ -348,16 +348,19 @@ def format_sceneflow_table(results, motorcycle: MotorcycleResult | None = None) 
 
 
 def main(args) -> int:
-    """CLI entry (``stereodeblur bench sceneflow``): render missing planar scenes, evaluate.
+    """CLI entry (``stereodeblur bench sceneflow``): render missing scenes, evaluate.
 
     Reads from ``args`` (all optional): ``sizes`` (comma-separated WIDTHxHEIGHT,
-    default ``640x480``), ``scenes`` (comma-separated planar scene names, default
-    all), ``work`` (folder for rendered scenes and results, default
+    default ``640x480``), ``scenes`` (comma-separated names of planar motions and
+    object scenes, ``NAME_noisy`` for a noisy variant; default every planar motion and
+    every noiseless object scene), ``work`` (folder for rendered scenes and results, default
     ``bench-sceneflow``), ``frame`` (default 1), ``no_motorcycle`` (skip the
     motorcycle check) and ``quiet``. Prints the Markdown tables and writes
     ``WORK/sceneflow.md`` and ``WORK/sceneflow.json``.
     """
+    from ..synth.objects import OBJECT_SCENES
     from ..synth.planar import PLANAR_MOTIONS, write_planar_set
+    from .paper_bench import render_missing
 
     quiet = bool(getattr(args, "quiet", False))
 
@@ -367,16 +370,18 @@ def main(args) -> int:
 
     work = Path(getattr(args, "work", None) or "bench-sceneflow")
     scenes = getattr(args, "scenes", None)
-    names = scenes.split(",") if scenes else list(PLANAR_MOTIONS)
+    names = scenes.split(",") if scenes else list(PLANAR_MOTIONS) + list(OBJECT_SCENES)
     frame = int(getattr(args, "frame", None) or 1)
     results = []
     for size_text in (getattr(args, "sizes", None) or "640x480").split(","):
         width, height = (int(v) for v in size_text.lower().split("x"))
         base = work / f"{width}x{height}"
         missing = [n for n in names if not (base / n / "camera.json").is_file()]
-        if missing:
-            say(f"rendering {len(missing)} planar scene(s) at {width}x{height}")
-            write_planar_set(base, size=(width, height), names=missing, progress=say)
+        planar = [n for n in missing if n in PLANAR_MOTIONS]
+        if planar:
+            say(f"rendering {len(planar)} planar scene(s) at {width}x{height}")
+            write_planar_set(base, size=(width, height), names=planar, progress=say)
+        render_missing(base, [n for n in missing if n not in planar], (width, height), progress=say)
         for name in names:
             say(f"scene flow {width}x{height} {name}")
             results.append(evaluate_scene(base / name, frame=frame))
