@@ -343,6 +343,7 @@ def cmd_sceneflow(args) -> int:
         *frames,
         scene.info.camera,
         num_segments=args.segments,
+        exposure=scene.info.exposure,
         progress=lambda stage, fraction: say(f"scene flow: {stage} ({100 * fraction:.0f} %)"),
         debug_dir=args.debug_dir,
     )

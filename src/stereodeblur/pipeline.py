@@ -270,7 +270,11 @@ def frame_motion(scene, index: int, view: str, settings: DeblurSettings, blurred
         return FrameMotion(index, neighbour, view, None, flow, backward)
     frames = [scene.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
     estimate = estimate_scene_flow(
-        *frames, scene.info.camera, num_segments=settings.num_segments, seed=settings.seed
+        *frames,
+        scene.info.camera,
+        num_segments=settings.num_segments,
+        seed=settings.seed,
+        exposure=scene.info.exposure,
     )
     return sceneflow_motion(estimate.sceneflow, index, neighbour, view)
 

@@ -69,7 +69,7 @@ def test_initial_weights_from_occlusion():
     )
 
 
-# --- adaptive weights on an exact model -------------------------------------------------------
+# --- Eq. 5 on an exact model ------------------------------------------------------------------
 
 
 @pytest.fixture

@@ -81,7 +81,7 @@ def initial_weights_from_occlusion(occlusion: np.ndarray, *, value: float = 0.0)
     Parameters
     ----------
     occlusion : ndarray of bool, shape (H, W)
-        E.g. :attr:`SceneFlow.occlusion`, or :func:`motion_boundary_band`.
+        E.g. :attr:`SceneFlow.occlusion`.
     value : float
         The weight of the masked pixels, in [0, 1].
 

@@ -200,7 +200,7 @@ def evaluate_scene(root: str | os.PathLike, *, frame: int = 1, out=None) -> Scen
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         est = estimate_scene_flow(
-            frames[0], frames[1], frames[2], frames[3], scene.info.camera, debug_dir=debug
+            *frames, scene.info.camera, exposure=scene.info.exposure, debug_dir=debug
         )
     seconds = time.perf_counter() - start
     cpu_seconds = time.process_time() - cpu_start
