@@ -69,13 +69,8 @@ def test_trust_uses_both_neighbouring_frames(scene):
     blurred = scene.read_frame("left", 1)
     motion = frame_motion(scene, 1, "left", settings, blurred)
     result = deblur_frame(scene, 1, settings=settings, motion=motion)
-    occlusion = motion.sceneflow.occlusion
-    forward = motion_trust(
-        blurred, scene.read_frame("left", 2), motion.flow_forward, occlusion=occlusion
-    )
-    backward = motion_trust(
-        blurred, scene.read_frame("left", 0), motion.flow_backward, occlusion=occlusion
-    )
+    forward = motion_trust(blurred, scene.read_frame("left", 2), motion.flow_forward)
+    backward = motion_trust(blurred, scene.read_frame("left", 0), motion.flow_backward)
     np.testing.assert_array_equal(result.trust, np.maximum(forward, backward))
 
 

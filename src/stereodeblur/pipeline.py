@@ -349,19 +349,12 @@ def boundary_weighting(
     elif settings.boundary_weights == "adaptive":
         from .deconv.trust import motion_trust, trust_anchor
 
-        occlusion = None if sf is None else sf.occlusion
-        trust = motion_trust(
-            blurred,
-            scene.read_frame(view, motion.neighbour),
-            motion.flow_forward,
-            occlusion=occlusion,
-        )
+        # Occlusions show as large residuals, and what is covered on one side is seen on
+        # the other; the scene flow's occlusion mask is wider than that and is not used.
+        trust = motion_trust(blurred, scene.read_frame(view, motion.neighbour), motion.flow_forward)
         other = 2 * index - motion.neighbour  # the frame on the other side, if any
         if motion.flow_backward is not None and 0 <= other < scene.num_frames:
-            # What leaves or is covered on one side is seen on the other.
-            backward = motion_trust(
-                blurred, scene.read_frame(view, other), motion.flow_backward, occlusion=occlusion
-            )
+            backward = motion_trust(blurred, scene.read_frame(view, other), motion.flow_backward)
             trust = np.maximum(trust, backward)
         anchor = trust_anchor(trust)
     if settings.boundary_mask == "gt":

@@ -7,13 +7,21 @@ motion). Where that prediction fails, the motion is wrong there (a scene-flow er
 ``x`` lies at a motion boundary or is occluded, and deconvolving with the model puts
 artefacts where there was only blur.
 
-``trust(x) = c(x) / (1 + (e(x) / s)^2)``, with ``c(x)`` the share of a Gaussian window
-(deviation ``smoothing`` px) that has a correspondence (no occlusion, stays in view),
-``e(x)^2`` the window's mean over those pixels of ``|B_next(x + f(x)) - B(x)|^2`` (mean
-over channels, bilinear sampling) and ``s = hypot(scale, 3 sigma)``, ``sigma`` the noise
-level of ``B``: two noisy frames alone (``e^2 = 2 sigma^2``) leave ``trust > 0.8``.
-Pixels whose flow leaves the view or that the motion marks as occluded get ``trust = 0``,
-and their neighbours less than 1: occlusions lie at motion boundaries.
+``trust(x) = c(x) / (1 + e(x)^2 / s(x)^2)``, with ``c(x)`` the share of a Gaussian window
+(deviation ``smoothing`` px) that has a correspondence (stays in view, not marked
+occluded), ``e(x)^2`` the window's mean over those pixels of ``|B_next(x + f(x)) - B(x)|^2``
+(mean over channels, bilinear sampling) and
+
+    ``s(x)^2 = relative^2 e_0(x)^2 + scale^2 + (3 sigma)^2``,
+
+``e_0(x)^2`` the same window mean of ``|B_next(x) - B(x)|^2`` (no motion), ``sigma`` the
+noise level of ``B``. The first term makes the test relative: a motion that explains all
+but a fraction ``relative`` of the change between the frames is trusted half, whatever the
+contrast of the texture or the length of the blur (the error a wrong kernel does grows
+with both, and so does what keeping the blurred pixel costs). The last term keeps two
+noisy frames (``e^2 = 2 sigma^2``) at ``trust > 0.8``.
+Pixels whose flow leaves the view or that are marked occluded get ``trust = 0``, and their
+neighbours less than 1.
 
 Deblurring uses it as an anchor (``deblur_irls(anchor=...)``), ``beta = strength (1 -
 trust)``: where the model is not trusted the estimate stays near the blurred frame. Zero
@@ -29,10 +37,13 @@ from scipy import ndimage
 from ..errors import InputError
 from .noise import estimate_noise_sigma
 
-TRUST_SCALE = 0.02
-"""``scale``: a temporal difference of this rms (noise-free) gives ``trust = 0.5``."""
+TRUST_RELATIVE = 0.5
+"""``relative``: the share of the frame-to-frame change left unexplained at ``trust = 0.5``."""
 
-ANCHOR_STRENGTH = 0.1
+TRUST_SCALE = 0.005
+"""``scale``: floor of ``s`` (intensity), for static or flat regions."""
+
+ANCHOR_STRENGTH = 0.3
 """``strength`` of the anchor, relative to the data term's unit weight."""
 
 
@@ -49,6 +60,7 @@ def motion_trust(
     flow: np.ndarray,
     *,
     occlusion: np.ndarray | None = None,
+    relative: float = TRUST_RELATIVE,
     scale: float = TRUST_SCALE,
     smoothing: float = 2.0,
     noise_sigma: float | None = None,
@@ -63,8 +75,10 @@ def motion_trust(
         Flow ``(u, v)`` from ``blurred`` to ``blurred_next``.
     occlusion : ndarray of bool, shape (H, W), optional
         Pixels without a reliable correspondence (trust 0).
+    relative : float
+        Unexplained share of the frame-to-frame change that gives ``trust = 0.5``.
     scale : float
-        Noise-free residual scale ``s``.
+        Floor of the residual scale ``s``.
     smoothing : float
         Deviation in pixels of the window of ``e``.
     noise_sigma : float, optional
@@ -79,7 +93,7 @@ def motion_trust(
             f"blurred {b.shape}, blurred_next {b_next.shape} and flow {flow.shape} "
             "must cover the same (H, W)"
         )
-    for name, value in (("scale", scale), ("smoothing", smoothing)):
+    for name, value in (("relative", relative), ("scale", scale), ("smoothing", smoothing)):
         if not (np.isfinite(value) and value >= 0):
             raise InputError(f"{name} must be a non-negative number, got {value!r}")
     sigma = estimate_noise_sigma(blurred) if noise_sigma is None else float(noise_sigma)
@@ -101,15 +115,17 @@ def motion_trust(
             raise InputError(f"occlusion must have shape {(H, W)}, got {occlusion.shape}")
         leaves |= occlusion
     squared = np.where(leaves, 0.0, np.mean((moved - b) ** 2, axis=2))
+    still = np.mean((b_next - b) ** 2, axis=2)
     share = (~leaves).astype(np.float64)
     if smoothing > 0:
         share = ndimage.gaussian_filter(share, smoothing, mode="nearest")
         squared = ndimage.gaussian_filter(squared, smoothing, mode="nearest")
         squared = squared / np.maximum(share, 1e-6)
-    s = max(float(np.hypot(scale, 3.0 * sigma)), 1e-12)
-    trust = share / (1.0 + squared / s**2)
+        still = ndimage.gaussian_filter(still, smoothing, mode="nearest")
+    s2 = relative**2 * still + scale**2 + (3.0 * sigma) ** 2
+    trust = share / (1.0 + squared / np.maximum(s2, 1e-24))
     trust[leaves] = 0.0
-    return trust.astype(np.float32)
+    return np.clip(trust, 0.0, 1.0).astype(np.float32)
 
 
 def trust_anchor(trust: np.ndarray, *, strength: float = ANCHOR_STRENGTH) -> np.ndarray:
