@@ -57,8 +57,10 @@ class DeblurSettings:
         Time samples over the exposure (paper: N = 70).
     alpha : float or 'auto'
         Prior weight of Eq. 6; ``'auto'`` (default) sets it from the noise level of the
-        blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`); the paper's is
-        0.001 (:data:`PAPER_ALPHA`).
+        blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`), and with
+        ``boundary_weights='adaptive'`` at least to what the share of pixels whose motion
+        is not trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`);
+        the paper's is 0.001 (:data:`PAPER_ALPHA`).
     num_irls, num_cg : int
         Iteration counts (paper: 10, 25).
     num_segments : int or None
@@ -302,12 +304,19 @@ def build_operator(motion: FrameMotion, exposure: Exposure, settings: DeblurSett
     return displacement_blur(forward, backward, exposure, num_samples=settings.num_samples)
 
 
-def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray) -> float:
-    """The prior weight of a run: ``settings.alpha``, or :func:`auto_alpha` of ``blurred``."""
+def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None) -> float:
+    """The prior weight of a run: ``settings.alpha``, or for ``'auto'`` :func:`auto_alpha` of
+    ``blurred``, raised to :func:`~stereodeblur.deconv.trust.alpha_from_trust` with a trust map.
+    """
     if settings.alpha == "auto":
         from .deconv.noise import auto_alpha
 
-        return auto_alpha(blurred)
+        alpha = auto_alpha(blurred)
+        if trust is not None:
+            from .deconv.trust import alpha_from_trust
+
+            alpha = max(alpha, alpha_from_trust(trust))
+        return alpha
     return float(settings.alpha)
 
 
@@ -399,10 +408,10 @@ def deblur_frame(
     operator = build_operator(motion, scene.info.exposure, settings)
     timings["operator"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    alpha = resolve_alpha(settings, blurred)
     initial, update, anchor, trust = boundary_weighting(
         scene, index, view, settings, motion, blurred
     )
+    alpha = resolve_alpha(settings, blurred, trust)
     result = deblur_irls(
         blurred,
         operator,

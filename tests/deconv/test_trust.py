@@ -164,3 +164,16 @@ def test_bad_inputs():
             SparseBlur(sp.identity(frame[..., 0].size, format="csr"), SHAPE),
             anchor=-np.ones(SHAPE),
         )
+
+
+def test_alpha_from_trust_grows_with_the_untrusted_share():
+    from stereodeblur.deconv.trust import alpha_from_trust
+
+    trust = np.ones((10, 100))
+    assert alpha_from_trust(trust) == 0.0
+    trust[0, :10] = 0.2  # 1 % untrusted: half of the paper's alpha
+    assert alpha_from_trust(trust) == pytest.approx(5e-4)
+    trust[:3] = 0.0  # 30 %: capped at the paper's
+    assert alpha_from_trust(trust) == pytest.approx(1e-3)
+    with pytest.raises(InputError):
+        alpha_from_trust(trust, share=0.0)
