@@ -63,7 +63,7 @@ def test_adaptive_trust_with_given_motion_matches_a_fresh_run(scene):
 
 
 def test_trust_uses_both_neighbouring_frames(scene):
-    from stereodeblur.deconv.trust import motion_trust
+    from stereodeblur.deconv.trust import motion_trust, near_motion_boundaries
 
     settings = DeblurSettings(**FAST)
     blurred = scene.read_frame("left", 1)
@@ -71,7 +71,10 @@ def test_trust_uses_both_neighbouring_frames(scene):
     result = deblur_frame(scene, 1, settings=settings, motion=motion)
     forward = motion_trust(blurred, scene.read_frame("left", 2), motion.flow_forward)
     backward = motion_trust(blurred, scene.read_frame("left", 0), motion.flow_backward)
-    np.testing.assert_array_equal(result.trust, np.maximum(forward, backward))
+    band = near_motion_boundaries(motion.flow_forward, scene.info.exposure.duty_cycle)
+    assert band.any() and not band.all()
+    np.testing.assert_array_equal(result.trust[band], np.maximum(forward, backward)[band])
+    np.testing.assert_array_equal(result.trust[~band], 1)
 
 
 @pytest.mark.parametrize(

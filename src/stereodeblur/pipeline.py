@@ -356,7 +356,7 @@ def boundary_weighting(
         if sf is not None:
             weights = initial_weights_from_occlusion(sf.occlusion)
     elif settings.boundary_weights == "adaptive":
-        from .deconv.trust import motion_trust, trust_anchor
+        from .deconv.trust import motion_trust, near_motion_boundaries, trust_anchor
 
         # Occlusions show as large residuals, and what is covered on one side is seen on
         # the other; the scene flow's occlusion mask is wider than that and is not used.
@@ -365,6 +365,8 @@ def boundary_weighting(
         if motion.flow_backward is not None and 0 <= other < scene.num_frames:
             backward = motion_trust(blurred, scene.read_frame(view, other), motion.flow_backward)
             trust = np.maximum(trust, backward)
+        band = near_motion_boundaries(motion.flow_forward, scene.info.exposure.duty_cycle)
+        trust = np.where(band, trust, 1.0).astype(np.float32)
         anchor = trust_anchor(trust)
     if settings.boundary_mask == "gt":
         if not (hasattr(scene, "has_gt") and scene.has_gt("mixed", view, index)):

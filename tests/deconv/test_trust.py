@@ -177,3 +177,16 @@ def test_alpha_from_trust_grows_with_the_untrusted_share():
     assert alpha_from_trust(trust) == pytest.approx(1e-3)
     with pytest.raises(InputError):
         alpha_from_trust(trust, share=0.0)
+
+
+def test_only_pixels_near_motion_boundaries_are_in_the_band():
+    from stereodeblur.deconv.trust import near_motion_boundaries
+
+    smooth = np.zeros((*SHAPE, 2))
+    smooth[..., 0] = np.linspace(0, 8, SHAPE[1])[None, :]  # an approach: no jump anywhere
+    assert not near_motion_boundaries(smooth, 0.8).any()
+    _, _, _, flow, _ = moving_disc(0.0)  # a 10 px jump at the disc's rim
+    band = near_motion_boundaries(flow, 0.8)
+    ys, xs = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]]
+    rim = np.abs(np.sqrt((ys - 36) ** 2 / 18**2 + (xs - 40) ** 2 / 22**2) - 1) < 0.05
+    assert band[rim].all() and not band[:, -10:].any() and not band[36, 38:42].any()

@@ -161,3 +161,30 @@ def alpha_from_trust(
         raise InputError(f"share and alpha must be positive numbers, got {share!r}, {alpha!r}")
     untrusted = float(np.mean(np.asarray(trust) < 0.5))
     return float(alpha * min(1.0, untrusted / share))
+
+
+def near_motion_boundaries(flow: np.ndarray, duty_cycle: float, *, jump: float = 0.5) -> np.ndarray:
+    """Pixels that a motion boundary's blur can reach, bool ``(H, W)``.
+
+    A boundary is a pair of 4-neighbours whose flows differ by more than ``jump`` px; the
+    band reaches ``2 + duty_cycle * |f|_95`` px from it (``|f|_95`` the 95th percentile of
+    the flow's length: how far content moves during the exposure). Elsewhere (a smoothly moving
+    surface) a failed prediction of the neighbouring frame comes from the blur changing
+    between the frames (an approach), not from a wrong motion, and is not held against it.
+    """
+    flow = np.asarray(flow, dtype=np.float64)
+    if flow.ndim != 3 or flow.shape[2] != 2:
+        raise InputError(f"flow must have shape (H, W, 2), got {flow.shape}")
+    flow = np.nan_to_num(flow)
+    seeds = np.zeros(flow.shape[:2], bool)
+    for a, b in (
+        ((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+        ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+    ):
+        differ = np.hypot(*np.moveaxis(flow[a] - flow[b], -1, 0)) > jump
+        seeds[a] |= differ
+        seeds[b] |= differ
+    if not seeds.any():
+        return seeds
+    reach = 2.0 + duty_cycle * float(np.percentile(np.hypot(flow[..., 0], flow[..., 1]), 95))
+    return ndimage.distance_transform_edt(~seeds) <= reach
