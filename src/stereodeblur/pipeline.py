@@ -68,10 +68,11 @@ class DeblurSettings:
     seed : int
     boundary_weights : {'adaptive', 'paper', 'none'}
         Handling of the pixels the blur model cannot explain (motion boundaries, motion
-        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` and anchors the estimate
-        to the blurred frame where the motion fails to predict both neighbouring frames
-        (:mod:`stereodeblur.deconv.trust`); ``'paper'`` Eq. 5 as published
-        (:class:`~stereodeblur.deconv.weights.PaperWeights`, updated every IRLS
+        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` and, near the motion's
+        flow discontinuities, anchors the estimate to the blurred frame where the motion
+        fails to predict both neighbouring frames (:mod:`stereodeblur.deconv.trust`);
+        ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
+        updated every IRLS
         iteration) started from the scene flow's occlusion mask (from 1 without a scene
         flow); ``'none'`` ``w = 1``.
     boundary_mask : {None, 'gt'}
