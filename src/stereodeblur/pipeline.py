@@ -72,9 +72,8 @@ class DeblurSettings:
         flow discontinuities, anchors the estimate to the blurred frame where the motion
         fails to predict both neighbouring frames (:mod:`stereodeblur.deconv.trust`);
         ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
-        updated every IRLS
-        iteration) started from the scene flow's occlusion mask (from 1 without a scene
-        flow); ``'none'`` ``w = 1``.
+        updated every IRLS iteration) started from the scene flow's occlusion mask (from 1
+        without a scene flow); ``'none'`` ``w = 1``.
     boundary_mask : {None, 'gt'}
         ``'gt'``: the scene's gt/mixed pixels get weight 0 throughout (the paper's
         masked experiment, Table 2), on top of ``boundary_weights``.
