@@ -356,14 +356,18 @@ def boundary_weighting(
         if sf is not None:
             weights = initial_weights_from_occlusion(sf.occlusion)
     elif settings.boundary_weights == "adaptive":
+        from .deconv.noise import estimate_noise_sigma
         from .deconv.trust import motion_trust, near_motion_boundaries, trust_anchor
 
         # Occlusions show as large residuals, and what is covered on one side is seen on
         # the other; the scene flow's occlusion mask is wider than that and is not used.
-        trust = motion_trust(blurred, scene.read_frame(view, motion.neighbour), motion.flow_forward)
+        sigma = estimate_noise_sigma(blurred)
+        following = scene.read_frame(view, motion.neighbour)
+        trust = motion_trust(blurred, following, motion.flow_forward, noise_sigma=sigma)
         other = 2 * index - motion.neighbour  # the frame on the other side, if any
         if motion.flow_backward is not None and 0 <= other < scene.num_frames:
-            backward = motion_trust(blurred, scene.read_frame(view, other), motion.flow_backward)
+            preceding = scene.read_frame(view, other)
+            backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=sigma)
             trust = np.maximum(trust, backward)
         band = near_motion_boundaries(motion.flow_forward, scene.info.exposure.duty_cycle)
         trust = np.where(band, trust, 1.0).astype(np.float32)

@@ -415,6 +415,9 @@ def _deblur(
         if beta.shape != plane or not np.all(np.isfinite(beta) & (beta >= 0)):
             raise InputError(f"anchor must be finite, >= 0 and of shape {plane}")
         beta = np.ascontiguousarray(beta) if beta.any() else None
+    if beta is not None:
+        beta3 = np.ascontiguousarray(np.broadcast_to(beta[..., None], b3.shape))
+        anchored = np.empty_like(b3)  # beta * p, reused by every CG step
 
     def forward(image3d):
         return _as_3d(np.asarray(operator.forward(image3d.reshape(shape)), dtype=np.float32))
@@ -437,7 +440,7 @@ def _deblur(
         _scale_pixels(weighted_b, squared)
         rhs = np.array(adjoint(weighted_b), dtype=np.float32, order="C")
         if beta is not None:
-            rhs += beta[..., None] * b3
+            rhs += beta3 * b3
         rhs_norm = np.sqrt(np.einsum("ijc,ijc->c", rhs, rhs, dtype=np.float64))
         return squared, bool(np.all(squared == 1)), rhs, np.where(rhs_norm > 0, rhs_norm, 1.0)
 
@@ -451,7 +454,8 @@ def _deblur(
         if np.may_share_memory(q, p3) or not q.flags.writeable or not q.flags.c_contiguous:
             q = np.array(q, order="C")
         if beta is not None:
-            q += beta[..., None] * p3
+            np.multiply(beta3, p3, out=anchored)
+            q += anchored
         _add_weighted_laplacian(p3, wx, wy, q, row_dots)
         return q
 
@@ -460,7 +464,7 @@ def _deblur(
         _residual(b3, np.ascontiguousarray(reblurred), squared, residual, partial)
         data = float(partial.sum())
         if beta is not None:
-            data += float(np.einsum("ij,ijc->", beta, (estimate3d - b3) ** 2, dtype=np.float64))
+            data += float(np.einsum("ijc,ijc->", beta3, (estimate3d - b3) ** 2, dtype=np.float64))
         return data
 
     def prior_term_and_weights(estimate3d):
@@ -497,7 +501,7 @@ def _deblur(
         _add_weighted_laplacian(estimate, wx, wy, correction, channel_partial)
         start -= correction
         if beta is not None:
-            start += beta[..., None] * (b3 - estimate)
+            start += beta3 * (b3 - estimate)
         estimate, norms, _ = solve(
             normal, rhs, estimate, num_iterations=int(num_cg), rtol=None, residual=start
         )

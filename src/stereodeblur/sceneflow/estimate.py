@@ -56,7 +56,6 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError
 from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
-from ..geometry.rigid import se3_log
 from .census import census_cost, census_thresholds, census_transform, noise_level
 from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
 from .initial import initial_disparity, initial_optical_flow, to_gray, to_gray_u8
@@ -557,10 +556,7 @@ def estimate_scene_flow(
                 valid=valid,
             )
     seg_abc = _keep_in_front(final.abc[chosen_local], graph, x_all, y_all)
-    M = np.tile(np.eye(4), (L, 1, 1))
-    M[:, :3, :3] = final.R[chosen_local]
-    M[:, :3, 3] = final.T[chosen_local]
-    twists = np.nan_to_num(se3_log(M))
+    twists = final.twists()[chosen_local]
     normals = plane_from_disparity_coefficients(camera, seg_abc)
     prog.done("refine")
 

@@ -68,6 +68,15 @@ class ProposalSet:
             np.concatenate([self.T, other.T]),
         )
 
+    def twists(self) -> np.ndarray:
+        """The motions as twists ``(v, omega)``, shape (M, 6) (non-finite entries as 0)."""
+        from ..geometry.rigid import se3_log
+
+        M = np.tile(np.eye(4), (len(self), 1, 1))
+        M[:, :3, :3] = self.R
+        M[:, :3, 3] = self.T
+        return np.nan_to_num(se3_log(M))
+
 
 # --------------------------------------------------------------------------- data term
 

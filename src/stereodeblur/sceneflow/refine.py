@@ -460,16 +460,11 @@ def cross_blur(
     from ..geometry.camera import Exposure
     from ..geometry.homography import trajectory_homographies
     from ..geometry.plane import plane_from_disparity_coefficients
-    from ..geometry.rigid import se3_log
     from .proposals import predict
 
     groups = np.asarray(groups, dtype=np.int64)
     height, width = groups.shape
-    num = len(proposals)
-    M = np.tile(np.eye(4), (num, 1, 1))
-    M[:, :3, :3] = proposals.R
-    M[:, :3, 3] = proposals.T
-    twists = np.nan_to_num(se3_log(M))
+    twists = proposals.twists()
     normals = plane_from_disparity_coefficients(camera, proposals.abc)
     yy, xx = np.mgrid[0:height, 0:width]
     x, y = xx.ravel().astype(np.float64), yy.ravel().astype(np.float64)
@@ -521,15 +516,11 @@ def blur_length_change(
 ) -> np.ndarray:
     """Length of a reference pixel's blur path in frame t + 1 minus that in frame t (pixels;
     if ``relative``, over the longer of the two or 1 pixel)."""
-    from ..geometry.rigid import se3_exp, se3_log
+    from ..geometry.rigid import se3_exp
 
     groups = np.asarray(groups, dtype=np.int64)
     height, width = groups.shape
-    num = len(proposals)
-    M = np.tile(np.eye(4), (num, 1, 1))
-    M[:, :3, :3] = proposals.R
-    M[:, :3, 3] = proposals.T
-    twists = np.nan_to_num(se3_log(M))
+    twists = proposals.twists()
     yy, xx = np.mgrid[0:height, 0:width]
     x, y = xx.ravel().astype(np.float64), yy.ravel().astype(np.float64)
     g = groups.ravel()
