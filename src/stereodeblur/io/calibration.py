@@ -408,17 +408,10 @@ def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
     if stripped.startswith("<"):
         raise InputError(f"{path}: XML calibration files are not supported; save it as YAML")
     if stripped.startswith("{"):
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(
-                f"{path}: invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
-            ) from None
-        if not isinstance(data, dict):
-            raise InputError(f"{path}: expected a JSON object")
-        if "format" in data or "K" in data:
-            from .scene import read_camera
+        from .scene import json_object, read_camera
 
+        data = json_object(text, path)
+        if "format" in data or "K" in data:
             info = read_camera(path)
             return StereoCalibration(
                 info.camera,

@@ -93,6 +93,19 @@ def _number(path, key: str, value) -> float:
     return float(value)
 
 
+def json_object(text: str, path) -> dict:
+    """``text`` parsed as a JSON object; a one-line :class:`InputError` naming ``path`` if not."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"{path}: invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
+        ) from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    return data
+
+
 def read_camera(path: str | os.PathLike) -> CameraInfo:
     """Read and validate ``camera.json`` (the file, or a scene folder holding it)."""
     path = Path(path)
@@ -104,14 +117,7 @@ def read_camera(path: str | os.PathLike) -> CameraInfo:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read {path}: {exc}") from exc
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(
-            f"{path}: invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
-        ) from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    data = json_object(text, path)
     unknown = sorted(set(data) - set(_CAMERA_KEYS))
     if unknown:
         raise InputError(
