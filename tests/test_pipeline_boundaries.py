@@ -4,9 +4,16 @@ import numpy as np
 import pytest
 
 from stereodeblur.deconv.noise import auto_alpha
+from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view
 from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
-from stereodeblur.pipeline import DeblurSettings, deblur_frame, frame_motion
+from stereodeblur.pipeline import (
+    DeblurSettings,
+    boundary_motion,
+    build_operator,
+    deblur_frame,
+    frame_motion,
+)
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
@@ -27,7 +34,13 @@ def test_gt_mask_keeps_mixed_pixels_at_zero_weight(scene):
         settings = DeblurSettings(boundary_weights=weights, boundary_mask="gt", **FAST)
         result = deblur_frame(scene, 1, settings=settings)
         assert np.all(result.result.weights[mixed] == 0)
-        np.testing.assert_array_equal(result.result.weights[~mixed], 1)
+        expected = np.ones(mixed.shape, np.float32)
+        if weights == "adaptive":  # and low where the exposure path leaves the view
+            motion = result.motion
+            duty_cycle = scene.info.exposure.duty_cycle
+            outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
+            expected[outside] = OUTSIDE_WEIGHT
+        np.testing.assert_array_equal(result.result.weights[~mixed], expected[~mixed])
         assert result.weight_steps == ()
         assert (result.trust is None) == (weights == "none")
 
@@ -57,9 +70,33 @@ def test_adaptive_trust_with_given_motion_matches_a_fresh_run(scene):
     given = deblur_frame(scene, 1, settings=settings, motion=motion)
     fresh = deblur_frame(scene, 1, settings=settings)
     np.testing.assert_array_equal(given.image, fresh.image)
-    np.testing.assert_array_equal(given.result.weights, 1)
+    outside = leaves_view(motion.flow_forward, motion.flow_backward, scene.info.exposure.duty_cycle)
+    assert outside.any() and not outside[4:-4, 4:-4].any()  # paths reach ~1 px
+    expected = np.where(outside, np.float32(OUTSIDE_WEIGHT), np.float32(1))
+    np.testing.assert_array_equal(given.result.weights, expected)
     mixed = scene.read_gt_mixed("left", 1)
     assert given.trust[mixed].mean() < given.trust[~mixed].mean()  # boundaries are distrusted
+
+
+def test_adaptive_takes_the_blur_near_motion_boundaries_from_the_dense_flow(scene):
+    settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+    motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
+    dense_forward, dense_backward = motion.boundary_flow
+    assert dense_forward.shape == motion.flow_forward.shape and dense_backward is not None
+    exposure = scene.info.exposure
+    hybrid, band = boundary_motion(motion, exposure.duty_cycle)
+    assert band.any() and not band.all()
+    np.testing.assert_array_equal(hybrid.flow_forward[band], dense_forward[band])
+    np.testing.assert_array_equal(hybrid.flow_backward[band], dense_backward[band])
+    np.testing.assert_allclose(hybrid.flow_forward[~band], motion.flow_forward[~band], rtol=1e-6)
+    merged = build_operator(hybrid, exposure, settings, flow_rows=band).matrix.toarray()
+    homographies = build_operator(motion, exposure, settings).matrix.toarray()
+    flow_kernels = DeblurSettings(**{**FAST, "kernels": "displacement"})
+    displacements = build_operator(hybrid, exposure, flow_kernels).matrix.toarray()
+    rows = band.ravel()
+    np.testing.assert_array_equal(merged[rows], displacements[rows])
+    np.testing.assert_array_equal(merged[~rows], homographies[~rows])
+    assert not np.array_equal(merged, homographies)
 
 
 def test_trust_uses_both_neighbouring_frames(scene):

@@ -9,7 +9,9 @@ is a combination of ``motion_source`` and ``kernels``:
   gt jumps) to the scene's gt/disparity (frames i, i + 1) and gt/flow (frame i);
   2D displacements taken directly from gt/flow.
 - ``motion_source='sceneflow'``: piecewise-rigid scene flow estimated from the
-  blurred stereo frames; 2D displacements are its projection.
+  blurred stereo frames; 2D displacements are its projection. The view's initial
+  optical flow comes along (``FrameMotion.boundary_flow``): near motion boundaries the
+  adaptive boundary handling takes the blur from it (see :func:`boundary_motion`).
 - ``motion_source='initial-flow'``: the initial optical flow of the left view alone
   (monocular); only ``kernels='displacement'`` can use it.
 """
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import ndimage
@@ -68,9 +70,11 @@ class DeblurSettings:
     seed : int
     boundary_weights : {'adaptive', 'paper', 'none'}
         Handling of the pixels the blur model cannot explain (motion boundaries, motion
-        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` and, near the motion's
-        flow discontinuities, anchors the estimate to the blurred frame where the motion
-        fails to predict both neighbouring frames (:mod:`stereodeblur.deconv.trust`);
+        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1``; near the motion's flow
+        discontinuities it takes the blur from the initial optical flow where the motion
+        has one (:func:`boundary_motion`) and anchors the estimate to the blurred frame
+        where the motion fails to predict both neighbouring frames
+        (:mod:`stereodeblur.deconv.trust`);
         ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
         updated every IRLS iteration) started from the scene flow's occlusion mask (from 1
         without a scene flow); ``'none'`` ``w = 1``.
@@ -122,7 +126,8 @@ class FrameMotion:
 
     ``sceneflow`` (for homography kernels) covers the frame's view with motions
     towards ``neighbour``; ``flow_forward`` / ``flow_backward`` (for displacement
-    kernels) are 2D flows to the next and previous frames.
+    kernels) are 2D flows to the next and previous frames. ``boundary_flow`` is the view's
+    dense optical flow ``(forward, backward or None)`` for :func:`boundary_motion`.
     """
 
     index: int
@@ -131,6 +136,7 @@ class FrameMotion:
     sceneflow: SceneFlow | None
     flow_forward: np.ndarray | None
     flow_backward: np.ndarray | None
+    boundary_flow: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -259,16 +265,10 @@ def frame_motion(scene, index: int, view: str, settings: DeblurSettings, blurred
     neighbour = neighbour_of(index, scene.num_frames)
     if settings.motion_source == "gt":
         return _gt_motion(scene, index, neighbour, view, settings, blurred)
-    from .sceneflow.estimate import estimate_scene_flow, initial_optical_flow
+    from .sceneflow.estimate import estimate_scene_flow
 
     if settings.motion_source == "initial-flow":
-        other = scene.read_frame(view, neighbour)
-        flow = initial_optical_flow(blurred, other)
-        backward = None
-        if neighbour > index and index > 0:
-            backward = initial_optical_flow(blurred, scene.read_frame(view, index - 1))
-        if neighbour < index:  # last frame: the flow to the previous frame leads
-            flow, backward = -flow, flow
+        flow, backward = dense_flow(scene, index, view, blurred)
         return FrameMotion(index, neighbour, view, None, flow, backward)
     frames = [scene.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
     estimate = estimate_scene_flow(
@@ -278,7 +278,26 @@ def frame_motion(scene, index: int, view: str, settings: DeblurSettings, blurred
         seed=settings.seed,
         exposure=scene.info.exposure,
     )
-    return sceneflow_motion(estimate.sceneflow, index, neighbour, view)
+    motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
+    return replace(motion, boundary_flow=dense_flow(scene, index, view, blurred))
+
+
+def dense_flow(scene, index: int, view: str, blurred) -> tuple:
+    """The initial optical flow of frame ``index`` of ``view``: ``(forward, backward)``.
+
+    ``forward`` leads to the frame's neighbour (:func:`neighbour_of`, as if it were the
+    next frame); ``backward`` to the frame on the other side, None if there is none.
+    """
+    from .sceneflow.estimate import initial_optical_flow
+
+    neighbour = neighbour_of(index, scene.num_frames)
+    flow = initial_optical_flow(blurred, scene.read_frame(view, neighbour))
+    backward = None
+    if neighbour > index and index > 0:
+        backward = initial_optical_flow(blurred, scene.read_frame(view, index - 1))
+    if neighbour < index:  # last frame: the flow to the previous frame leads
+        flow, backward = -flow, flow
+    return flow, backward
 
 
 def sceneflow_motion(sceneflow: SceneFlow, index: int, neighbour: int, view: str) -> FrameMotion:
@@ -291,17 +310,57 @@ def sceneflow_motion(sceneflow: SceneFlow, index: int, neighbour: int, view: str
     return FrameMotion(index, neighbour, view, sf, sf.flow(), sf.reversed().flow())
 
 
-def build_operator(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings) -> SparseBlur:
-    """The blur operator of a frame: homography- or displacement-induced."""
-    if settings.kernels == "homography":
-        from .blur.homography import homography_blur
+def boundary_motion(motion: FrameMotion, duty_cycle: float) -> tuple[FrameMotion, np.ndarray]:
+    """The motion with its 2D flows taken from ``motion.boundary_flow`` near motion boundaries.
 
-        return homography_blur(motion.sceneflow, exposure, num_samples=settings.num_samples)
+    Where the exposure mixes two surfaces the blurred edge travels with the occluding one,
+    and the dense flow of the blurred frames follows it; a piecewise-rigid scene flow gives
+    each pixel the one surface it shows at the frame's centre. On the benchmark's object
+    scenes the dense flow's straight kernels explain those pixels better than the segments'
+    homographies (``stereodeblur bench paper``). Returns the motion and the boundary band
+    (bool ``(H, W)``, :func:`~stereodeblur.deconv.trust.near_motion_boundaries` of the scene
+    flow's 2D flow): pass it to :func:`build_operator` as ``flow_rows``.
+    """
+    from .deconv.trust import near_motion_boundaries
+
+    band = near_motion_boundaries(motion.flow_forward, duty_cycle)
+    forward, backward = motion.boundary_flow
+    backward = -forward if backward is None else backward
+    inside = band[..., None]
+    return (
+        replace(
+            motion,
+            flow_forward=np.where(inside, forward, motion.flow_forward).astype(np.float32),
+            flow_backward=np.where(inside, backward, motion.flow_backward).astype(np.float32),
+        ),
+        band,
+    )
+
+
+def build_operator(
+    motion: FrameMotion, exposure: Exposure, settings: DeblurSettings, *, flow_rows=None
+) -> SparseBlur:
+    """The blur operator of a frame: homography- or displacement-induced.
+
+    ``flow_rows`` (bool ``(H, W)``) gives homography kernels' pixels that take their rows
+    from the displacement kernels of ``motion``'s 2D flows instead.
+    """
     from .blur.displacement import displacement_blur
 
     forward = motion.flow_forward
     backward = -forward if motion.flow_backward is None else motion.flow_backward
-    return displacement_blur(forward, backward, exposure, num_samples=settings.num_samples)
+    num = settings.num_samples
+    if settings.kernels == "displacement":
+        return displacement_blur(forward, backward, exposure, num_samples=num)
+    from .blur.homography import homography_blur
+    from .blur.operator import merge_rows
+
+    operator = homography_blur(motion.sceneflow, exposure, num_samples=num)
+    if flow_rows is None or not np.any(flow_rows):
+        return operator
+    return merge_rows(
+        operator, displacement_blur(forward, backward, exposure, num_samples=num), flow_rows
+    )
 
 
 def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None) -> float:
@@ -338,12 +397,16 @@ def boundary_weighting(
     Returns
     -------
     weights : ndarray, float32, shape (H, W)
-        ``w_0``.
+        ``w_0``; ``'adaptive'``: :data:`~stereodeblur.deconv.trust.OUTSIDE_WEIGHT` where
+        the exposure path leaves the view (:func:`~stereodeblur.deconv.trust.leaves_view`),
+        else 1.
     update : callable or None
         For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
         (a masked update in ``.update.history``).
     anchor, trust : ndarray, float32, shape (H, W), or None
-        For ``deblur_irls(anchor=...)``, and the trust it came from.
+        For ``deblur_irls(anchor=...)``, and the trust it came from: the motion's trust
+        near motion boundaries, 1 elsewhere (what ``alpha='auto'`` reads; it does not
+        include the pixels whose exposure path leaves the view).
     """
     from .deconv.weights import PaperWeights, initial_weights_from_occlusion
 
@@ -357,8 +420,20 @@ def boundary_weighting(
             weights = initial_weights_from_occlusion(sf.occlusion)
     elif settings.boundary_weights == "adaptive":
         from .deconv.noise import estimate_noise_sigma
-        from .deconv.trust import motion_trust, near_motion_boundaries, trust_anchor
+        from .deconv.trust import (
+            OUTSIDE_WEIGHT,
+            leaves_view,
+            motion_trust,
+            near_motion_boundaries,
+            trust_anchor,
+        )
 
+        # Pixels whose exposure path leaves the view show content the blur model replaces
+        # by the edge pixel's: a small data weight (not an anchor, and not in the trust
+        # map, so that alpha does not rise for them; stereodeblur.deconv.trust).
+        duty_cycle = scene.info.exposure.duty_cycle
+        outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
+        weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
         # Occlusions show as large residuals, and what is covered on one side is seen on
         # the other; the scene flow's occlusion mask is wider than that and is not used.
         sigma = estimate_noise_sigma(blurred)
@@ -369,7 +444,7 @@ def boundary_weighting(
             preceding = scene.read_frame(view, other)
             backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=sigma)
             trust = np.maximum(trust, backward)
-        band = near_motion_boundaries(motion.flow_forward, scene.info.exposure.duty_cycle)
+        band = near_motion_boundaries(motion.flow_forward, duty_cycle)
         trust = np.where(band, trust, 1.0).astype(np.float32)
         anchor = trust_anchor(trust)
     if settings.boundary_mask == "gt":
@@ -411,13 +486,26 @@ def deblur_frame(
     timings["motion"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"frame {index} {view}: blur operator ({settings.kernels})")
-    operator = build_operator(motion, scene.info.exposure, settings)
+    flow_rows = None
+    own = motion
+    if (
+        settings.boundary_weights == "adaptive"
+        and settings.kernels == "homography"
+        and motion.boundary_flow is not None
+    ):
+        motion, flow_rows = boundary_motion(motion, scene.info.exposure.duty_cycle)
+    operator = build_operator(motion, scene.info.exposure, settings, flow_rows=flow_rows)
     timings["operator"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     initial, update, anchor, trust = boundary_weighting(
         scene, index, view, settings, motion, blurred
     )
-    alpha = resolve_alpha(settings, blurred, trust)
+    alpha_trust = trust
+    if flow_rows is not None and settings.alpha == "auto":
+        # The dense flow mends the boundaries, not the segments' misfit elsewhere: alpha
+        # follows the scene flow's own trust (stereodeblur.deconv.trust.alpha_from_trust).
+        alpha_trust = boundary_weighting(scene, index, view, settings, own, blurred)[3]
+    alpha = resolve_alpha(settings, blurred, alpha_trust)
     result = deblur_irls(
         blurred,
         operator,

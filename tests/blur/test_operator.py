@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from stereodeblur.blur.operator import SparseBlur, dot_test
+from stereodeblur.blur.operator import SparseBlur, dot_test, merge_rows
 
 SHAPE = (12, 15)
 
@@ -72,3 +72,17 @@ def test_shape_errors():
         op.forward(np.zeros((SHAPE[1], SHAPE[0])))
     with pytest.raises(ValueError, match="matrix shape"):
         SparseBlur(sp.eye(10, format="csr"), SHAPE)
+
+
+def test_merge_rows_takes_each_row_from_the_chosen_operator():
+    a = SparseBlur(_random_matrix(3, np.float32, np.int32), SHAPE)
+    b = SparseBlur(_random_matrix(4, np.float32, np.int32), SHAPE)
+    mask = np.random.default_rng(5).random(SHAPE) < 0.3
+    merged = merge_rows(a, b, mask)
+    take = mask.ravel()[:, None]
+    expected = np.where(take, b.matrix.toarray(), a.matrix.toarray())
+    np.testing.assert_array_equal(merged.matrix.toarray(), expected)
+    assert merged.matrix.indices.dtype == np.int32 and merged.matrix.data.dtype == np.float32
+    assert dot_test(merged, SHAPE + (2,)) < 1e-12
+    with pytest.raises(ValueError, match="one shape"):
+        merge_rows(a, b, mask[:-1])

@@ -10,7 +10,7 @@ from skimage import data, transform
 from stereodeblur.blur.operator import SparseBlur
 from stereodeblur.deconv import deblur_irls
 from stereodeblur.deconv.noise import auto_alpha
-from stereodeblur.deconv.trust import motion_trust, trust_anchor
+from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view, motion_trust, trust_anchor
 from stereodeblur.errors import InputError
 from stereodeblur.evaluation.metrics import psnr
 
@@ -190,3 +190,78 @@ def test_only_pixels_near_motion_boundaries_are_in_the_band():
     ys, xs = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]]
     rim = np.abs(np.sqrt((ys - 36) ** 2 / 18**2 + (xs - 40) ** 2 / 22**2) - 1) < 0.05
     assert band[rim].all() and not band[:, -10:].any() and not band[36, 38:42].any()
+
+
+def test_a_translation_leaves_the_view_on_both_sides_along_its_path():
+    flow = np.broadcast_to(np.array([3.0, 0.0]), (*SHAPE, 2))  # 1.2 px each way at tau = 0.8
+    height, width = SHAPE
+    leaves = leaves_view(flow, None, 0.8)
+    assert leaves.dtype == bool and leaves.shape == SHAPE
+    expected = np.zeros(SHAPE, bool)
+    expected[:, [0, 1, width - 2, width - 1]] = True
+    np.testing.assert_array_equal(leaves, expected)
+    expected[:, [2, width - 3]] = True  # ends within 1 px of the edge
+    expected[[0, height - 1]] = True  # the pixels within 1 px of it, whatever their flow
+    np.testing.assert_array_equal(leaves_view(flow, None, 0.8, margin=1.0), expected)
+    upward = np.zeros((*SHAPE, 2))
+    upward[..., 1] = -5.0  # 2.5 px up in the second half of a full exposure, none before
+    leaves = leaves_view(upward, np.zeros((*SHAPE, 2)), 1.0)
+    expected = np.zeros(SHAPE, bool)
+    expected[:3] = True
+    np.testing.assert_array_equal(leaves, expected)
+    assert not leaves_view(np.zeros((*SHAPE, 2)), None, 1.0).any()
+
+
+def test_a_roll_leaves_where_a_sampled_path_does():
+    height, width = SHAPE
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
+    forward = 0.2 * np.stack([-(ys - 30.0), xs - 40.0], axis=-1)  # rotation about (40, 30)
+    backward = -0.7 * forward + 0.5  # slower before the frame centre, and drifting
+    duty, margin = 0.6, 0.5
+    out = np.zeros(SHAPE, bool)
+    for s in np.linspace(0.0, duty / 2, 31):
+        for flow in (forward, backward):
+            px, py = xs + s * flow[..., 0], ys + s * flow[..., 1]
+            out |= (px < margin) | (px > width - 1 - margin) | (py < margin)
+            out |= py > height - 1 - margin
+    leaves = leaves_view(forward, backward, duty, margin=margin)
+    np.testing.assert_array_equal(leaves, out)
+    assert 0 < leaves.mean() < 0.5 and not leaves[20:40, 30:50].any()
+
+
+def test_leaves_view_counts_unknown_flow_and_checks_its_inputs():
+    flow = np.zeros((*SHAPE, 2))
+    flow[5, 7] = np.nan
+    leaves = leaves_view(flow, None, 0.5, margin=0.0)
+    assert leaves[5, 7] and leaves.sum() == 1
+    with pytest.raises(InputError):
+        leaves_view(flow[..., 0], None, 0.5)
+    with pytest.raises(InputError):
+        leaves_view(flow, flow[:10], 0.5)
+    with pytest.raises(InputError):
+        leaves_view(flow, None, 1.5)
+    with pytest.raises(InputError):
+        leaves_view(flow, None, 0.5, margin=-1.0)
+
+
+@pytest.mark.parametrize("motion", [(10.0, 0.0), (8.0, 6.0)])
+def test_a_low_weight_where_the_path_leaves_the_view_helps_inside(motion):
+    from stereodeblur.blur.displacement import displacement_blur
+    from stereodeblur.geometry.camera import Exposure
+
+    pad = 12  # the frame is the middle of a wider scene: content enters during the exposure
+    scene = transform.resize(
+        data.astronaut() / 255.0, (SHAPE[0] + 2 * pad, SHAPE[1] + 2 * pad, 3), anti_aliasing=True
+    ).astype(np.float32)
+    exposure = Exposure(20.0, 0.04)
+    wide = np.broadcast_to(np.array(motion), (*scene.shape[:2], 2))
+    view = (slice(pad, -pad), slice(pad, -pad))
+    blurred = displacement_blur(wide, -wide, exposure, num_samples=16).forward(scene)[view]
+    sharp, flow = scene[view], wide[view]
+    blur = displacement_blur(flow, -flow, exposure, num_samples=16)
+    outside = leaves_view(flow, None, exposure.duty_cycle)
+    weights = np.where(outside, OUTSIDE_WEIGHT, 1).astype(np.float32)
+    options = {"alpha": auto_alpha(blurred), "num_irls": 4, "num_cg": 15}
+    plain = psnr(deblur_irls(blurred, blur, **options).image, sharp, border=8)
+    masked = psnr(deblur_irls(blurred, blur, weights=weights, **options).image, sharp, border=8)
+    assert masked > plain + 1.0

@@ -239,7 +239,7 @@ def cached_motion(scene, source: str, settings, cache: Path):
     """
     from dataclasses import replace
 
-    from ..pipeline import FrameMotion, frame_motion, neighbour_of
+    from ..pipeline import FrameMotion, dense_flow, frame_motion, neighbour_of
     from ..sceneflow.storage import load_sceneflow, save_sceneflow
 
     kernels = "displacement" if source == "initial-flow" else settings.kernels
@@ -248,7 +248,9 @@ def cached_motion(scene, source: str, settings, cache: Path):
     path = cache / f"{source}.npz"
     if source == "sceneflow" and path.is_file():
         sf = load_sceneflow(path)
-        return FrameMotion(FRAME, neighbour, "left", sf, sf.flow(), sf.reversed().flow()), 0.0, ()
+        dense = dense_flow(scene, FRAME, "left", scene.read_frame("left", FRAME))
+        motion = FrameMotion(FRAME, neighbour, "left", sf, sf.flow(), sf.reversed().flow(), dense)
+        return motion, 0.0, ()
     if source == "initial-flow" and path.is_file():
         with np.load(path) as data:
             backward = data["backward"] if data["backward"].size else None
