@@ -70,11 +70,11 @@ class DeblurSettings:
     seed : int
     boundary_weights : {'adaptive', 'paper', 'none'}
         Handling of the pixels the blur model cannot explain (motion boundaries, motion
-        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1``; near the motion's flow
-        discontinuities it takes the blur from the initial optical flow where the motion
-        has one (:func:`boundary_motion`) and anchors the estimate to the blurred frame
-        where the motion fails to predict both neighbouring frames
-        (:mod:`stereodeblur.deconv.trust`);
+        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` (but a small weight
+        where the exposure path leaves the view); near the motion's flow discontinuities
+        it takes the blur from the initial optical flow where the motion has one
+        (:func:`boundary_motion`) and anchors the estimate to the blurred frame where the
+        motion fails to predict both neighbouring frames (:mod:`stereodeblur.deconv.trust`);
         ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
         updated every IRLS iteration) started from the scene flow's occlusion mask (from 1
         without a scene flow); ``'none'`` ``w = 1``.
