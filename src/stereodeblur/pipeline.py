@@ -279,7 +279,14 @@ def frame_motion(scene, index: int, view: str, settings: DeblurSettings, blurred
         exposure=scene.info.exposure,
     )
     motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
+    if not uses_boundary_flow(settings):
+        return motion
     return replace(motion, boundary_flow=dense_flow(scene, index, view, blurred))
+
+
+def uses_boundary_flow(settings: DeblurSettings) -> bool:
+    """Whether ``settings`` take the blur near motion boundaries from the dense flow."""
+    return settings.boundary_weights == "adaptive" and settings.kernels == "homography"
 
 
 def dense_flow(scene, index: int, view: str, blurred) -> tuple:
@@ -488,11 +495,7 @@ def deblur_frame(
     say(f"frame {index} {view}: blur operator ({settings.kernels})")
     flow_rows = None
     own = motion
-    if (
-        settings.boundary_weights == "adaptive"
-        and settings.kernels == "homography"
-        and motion.boundary_flow is not None
-    ):
+    if uses_boundary_flow(settings) and motion.boundary_flow is not None:
         motion, flow_rows = boundary_motion(motion, scene.info.exposure.duty_cycle)
     operator = build_operator(motion, scene.info.exposure, settings, flow_rows=flow_rows)
     timings["operator"] = time.perf_counter() - t0
