@@ -396,6 +396,29 @@ class _MaskedUpdate:
         return self.update(n, blurred, residual, estimate, weights) * self.mask
 
 
+def frame_trust(scene, index: int, view: str, motion: FrameMotion, blurred) -> np.ndarray:
+    """Trust in ``motion`` near its flow discontinuities, 1 elsewhere, float32 ``(H, W)``.
+
+    The better of the predictions of the two neighbouring frames
+    (:func:`~stereodeblur.deconv.trust.motion_trust`). Occlusions show as large residuals,
+    and what is covered on one side is seen on the other; the scene flow's occlusion mask
+    is wider than that and is not used.
+    """
+    from .deconv.noise import estimate_noise_sigma
+    from .deconv.trust import motion_trust, near_motion_boundaries
+
+    sigma = estimate_noise_sigma(blurred)
+    following = scene.read_frame(view, motion.neighbour)
+    trust = motion_trust(blurred, following, motion.flow_forward, noise_sigma=sigma)
+    other = 2 * index - motion.neighbour  # the frame on the other side, if any
+    if motion.flow_backward is not None and 0 <= other < scene.num_frames:
+        preceding = scene.read_frame(view, other)
+        backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=sigma)
+        trust = np.maximum(trust, backward)
+    band = near_motion_boundaries(motion.flow_forward, scene.info.exposure.duty_cycle)
+    return np.where(band, trust, 1.0).astype(np.float32)
+
+
 def boundary_weighting(
     scene, index: int, view: str, settings: DeblurSettings, motion: FrameMotion, blurred
 ):
@@ -426,14 +449,7 @@ def boundary_weighting(
         if sf is not None:
             weights = initial_weights_from_occlusion(sf.occlusion)
     elif settings.boundary_weights == "adaptive":
-        from .deconv.noise import estimate_noise_sigma
-        from .deconv.trust import (
-            OUTSIDE_WEIGHT,
-            leaves_view,
-            motion_trust,
-            near_motion_boundaries,
-            trust_anchor,
-        )
+        from .deconv.trust import OUTSIDE_WEIGHT, leaves_view, trust_anchor
 
         # Pixels whose exposure path leaves the view show content the blur model replaces
         # by the edge pixel's: a small data weight (not an anchor, and not in the trust
@@ -441,18 +457,7 @@ def boundary_weighting(
         duty_cycle = scene.info.exposure.duty_cycle
         outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
         weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
-        # Occlusions show as large residuals, and what is covered on one side is seen on
-        # the other; the scene flow's occlusion mask is wider than that and is not used.
-        sigma = estimate_noise_sigma(blurred)
-        following = scene.read_frame(view, motion.neighbour)
-        trust = motion_trust(blurred, following, motion.flow_forward, noise_sigma=sigma)
-        other = 2 * index - motion.neighbour  # the frame on the other side, if any
-        if motion.flow_backward is not None and 0 <= other < scene.num_frames:
-            preceding = scene.read_frame(view, other)
-            backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=sigma)
-            trust = np.maximum(trust, backward)
-        band = near_motion_boundaries(motion.flow_forward, duty_cycle)
-        trust = np.where(band, trust, 1.0).astype(np.float32)
+        trust = frame_trust(scene, index, view, motion, blurred)
         anchor = trust_anchor(trust)
     if settings.boundary_mask == "gt":
         if not (hasattr(scene, "has_gt") and scene.has_gt("mixed", view, index)):
@@ -507,7 +512,7 @@ def deblur_frame(
     if flow_rows is not None and settings.alpha == "auto":
         # The dense flow mends the boundaries, not the segments' misfit elsewhere: alpha
         # follows the scene flow's own trust (stereodeblur.deconv.trust.alpha_from_trust).
-        alpha_trust = boundary_weighting(scene, index, view, settings, own, blurred)[3]
+        alpha_trust = frame_trust(scene, index, view, own, blurred)
     alpha = resolve_alpha(settings, blurred, alpha_trust)
     result = deblur_irls(
         blurred,
