@@ -190,6 +190,11 @@ def test_only_pixels_near_motion_boundaries_are_in_the_band():
     ys, xs = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]]
     rim = np.abs(np.sqrt((ys - 36) ** 2 / 18**2 + (xs - 40) ** 2 / 22**2) - 1) < 0.05
     assert band[rim].all() and not band[:, -10:].any() and not band[36, 38:42].any()
+    tiles = np.zeros((*SHAPE, 2))
+    tiles[..., 0] = 40.0
+    tiles[:, SHAPE[1] // 2 :, 0] += 0.6  # two estimates of one fast surface: 1.5 % apart
+    assert not near_motion_boundaries(tiles, 0.8).any()
+    assert near_motion_boundaries(tiles, 0.8, relative=0.01).any()
 
 
 def test_a_translation_leaves_the_view_on_both_sides_along_its_path():

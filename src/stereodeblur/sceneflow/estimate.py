@@ -56,7 +56,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError
 from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
-from .census import census_cost, census_thresholds, census_transform, noise_level
+from .census import census_cost, census_descriptors
 from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
 from .initial import initial_disparity, initial_optical_flow, to_gray, to_gray_u8
 from .model import SceneFlow
@@ -81,6 +81,7 @@ MATCH_COST = 0.3  # census cost (fraction of differing neighbours) of a good mat
 MIN_MATCHED = 0.1  # warn when fewer pixels than this match in a view
 CENSUS_THRESHOLD = 0.008  # census "similar" band at a quarter of full scale (clean images)
 CENSUS_NOISE_FACTOR = 1.0  # ... at least the std of the noise of a pixel difference
+CENSUS_DENOISE = 1.5  # px: Gaussian smoothing before the census of noisy images
 EDGE_FLOOR = 0.25  # smoothness weight across a strong contrast edge
 EDGE_CONTRAST = 0.1  # mean grey difference (of [0, 1]) that counts as an edge
 # Balancing the blur doubles it (weaker data), so it is done only where the blur's length
@@ -332,16 +333,13 @@ def estimate_scene_flow(
     u8 = [to_gray_u8(g, scale=gain) for g in grays]  # for OpenCV
     normed = [np.clip(g * np.float32(gain), 0.0, 1.0) for g in grays]
     # Census "similar" bands relative to the brightness (dark texture counts) and above
-    # the sensor noise (estimated on each image).
+    # the sensor noise (estimated on each image); noisy images are smoothed first.
     codes = tuple(
-        census_transform(
+        census_descriptors(
             g,
-            threshold=census_thresholds(
-                g,
-                threshold=CENSUS_THRESHOLD,
-                noise=noise_level(g),
-                noise_factor=CENSUS_NOISE_FACTOR,
-            ),
+            threshold=CENSUS_THRESHOLD,
+            noise_factor=CENSUS_NOISE_FACTOR,
+            denoise=CENSUS_DENOISE,
         )
         for g in normed
     )
