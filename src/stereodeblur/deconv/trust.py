@@ -75,8 +75,8 @@ ANCHOR_STRENGTH = 0.3
 BOUNDARY_RELATIVE = 0.02
 """Least flow difference of a motion boundary, as a share of the flow's length
 (:func:`near_motion_boundaries`). The estimated segments of the planar scene
-``long_exposure_roll`` (flows up to 85 px, full exposure) differ by up to 0.6 px (0.7 %),
-and an absolute 0.5 px made 11 % of that image a boundary band (-3.7 dB against the true
+``long_exposure_roll`` (95th percentile of the flow 85 px, full exposure) differ by up to
+0.6 px, and an absolute 0.5 px made 11 % of that image a boundary band (-4.4 dB against the true
 motion); on the object scenes 2 % drops fewer than 0.3 % of the scene flow's boundary
 pairs."""
 
