@@ -99,6 +99,30 @@ def test_adaptive_takes_the_blur_near_motion_boundaries_from_the_dense_flow(scen
     assert not np.array_equal(merged, homographies)
 
 
+def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
+    import dataclasses
+
+    from stereodeblur import pipeline
+
+    anchors = []
+    solver = pipeline.deblur_irls
+
+    def spy(*args, anchor=None, **kwargs):
+        anchors.append(anchor)
+        return solver(*args, anchor=anchor, **kwargs)
+
+    monkeypatch.setattr(pipeline, "deblur_irls", spy)
+    settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+    motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
+    hybrid = deblur_frame(scene, 1, settings=settings, motion=motion)
+    plain = deblur_frame(
+        scene, 1, settings=settings, motion=dataclasses.replace(motion, boundary_flow=None)
+    )
+    assert anchors[0] is None  # the dense flow's rows explain the boundaries
+    assert anchors[1] is not None and anchors[1].max() > 0  # the anchor guards the homographies
+    assert (hybrid.trust < 1).any() and (plain.trust < 1).any()
+
+
 def test_trust_uses_both_neighbouring_frames(scene):
     from stereodeblur.deconv.trust import motion_trust, near_motion_boundaries
 

@@ -23,10 +23,13 @@ noisy frames (``e^2 = 2 sigma^2``) at ``trust > 0.8``.
 Pixels whose flow leaves the view or that are marked occluded get ``trust = 0``, and their
 neighbours less than 1.
 
-Deblurring uses it as an anchor (``deblur_irls(anchor=...)``), ``beta = strength (1 -
-trust)``: where the model is not trusted the estimate stays near the blurred frame. Zero
-data weights (the paper's Eq. 5 taken to its limit) would leave those pixels to the prior
-alone, which on texture is worse than the blur.
+Deblurring with a blur model that has nothing better at its boundaries uses it as an
+anchor (``deblur_irls(anchor=...)``), ``beta = strength (1 - trust)``: where the model is
+not trusted the estimate stays near the blurred frame. Zero data weights (the paper's Eq. 5
+taken to its limit) would leave those pixels to the prior alone, which on texture is worse
+than the blur. Where the pipeline takes the boundaries' blur from the dense optical flow
+(:func:`stereodeblur.pipeline.boundary_motion`), it sets no anchor: there the anchor only
+kept the boundaries' blur.
 
 Where the motion fails visibly somewhere, it is also less exact everywhere else (a
 piecewise-planar fit of curved or independently moving objects): :func:`alpha_from_trust`
