@@ -511,9 +511,9 @@ def deblur_frame(
     )
     alpha_trust = trust
     if flow_rows is not None:
-        # The dense flow's rows explain the boundaries; an anchor to the blurred frame would
-        # only keep their blur (bench paper 640x480, object scenes: +0.15 / +0.08 dB and
-        # SSIM +0.002 without it). It mends the boundaries, not the segments' misfit
+        # The dense flow's rows explain the boundaries: no anchor to the blurred frame, which
+        # would only keep their blur (bench paper 640x480, object scenes: +0.15 / +0.08 dB and
+        # SSIM +0.003 without it). They mend the boundaries, not the segments' misfit
         # elsewhere: alpha follows the scene flow's own trust (deconv.trust.alpha_from_trust).
         anchor = None
         if settings.alpha == "auto":
