@@ -94,8 +94,9 @@ def _add_deblur_options(p: argparse.ArgumentParser) -> None:
         "--boundary-weights",
         choices=["adaptive", "paper"],
         default="adaptive",
-        help="motion boundaries: adaptive (default: keep the blurred frame where the motion "
-        "does not predict the neighbouring frames) or paper (Eq. 5 data weights as published)",
+        help="motion boundaries: adaptive (default: blur from the dense optical flow near "
+        "motion boundaries, else keep the blurred frame where the motion does not predict "
+        "the neighbouring frames) or paper (Eq. 5 data weights as published)",
     )
     w.add_argument(
         "--no-boundary-weights",

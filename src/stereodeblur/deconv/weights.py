@@ -15,8 +15,9 @@ updates here are small stateful objects: every call appends a :class:`WeightsSte
 weights it returned, the residual norm they came from, the residual scale it used) to the
 object's ``history``; use a fresh object for every deblurring.
 
-The default handling of motion boundaries is not a data weight but an anchor to the
-blurred frame where the motion is not trusted (:mod:`stereodeblur.deconv.trust`).
+The default handling of motion boundaries is not a data weight but the dense optical
+flow's kernels there (:func:`stereodeblur.pipeline.boundary_motion`), or without those an
+anchor to the blurred frame where the motion is not trusted (:mod:`stereodeblur.deconv.trust`).
 """
 
 from __future__ import annotations
