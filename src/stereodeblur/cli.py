@@ -221,16 +221,8 @@ def cmd_deblur(args) -> int:
 
 def _deblur_with_saved_sceneflow(args, settings, source, frames, views) -> int:
     """``deblur --sceneflow FILE``: one frame, its motion read from ``stereodeblur sceneflow``."""
-    from dataclasses import replace
-
     from .io.scene import SceneWriter
-    from .pipeline import (
-        deblur_frame,
-        dense_flow,
-        neighbour_of,
-        sceneflow_motion,
-        uses_boundary_flow,
-    )
+    from .pipeline import deblur_frame, neighbour_of, sceneflow_motion, with_boundary_flow
     from .sceneflow.storage import load_sceneflow
 
     if settings.motion_source == "initial-flow" or frames is None or len(frames) != 1:
@@ -250,9 +242,7 @@ def _deblur_with_saved_sceneflow(args, settings, source, frames, views) -> int:
     writer = SceneWriter(args.output, source.info, overwrite=args.overwrite, protect=[source.root])
     for view in views:
         motion = sceneflow_motion(sceneflow, index, neighbour, view)
-        if uses_boundary_flow(settings):
-            blurred = source.read_frame(view, index)
-            motion = replace(motion, boundary_flow=dense_flow(source, index, view, blurred))
+        motion = with_boundary_flow(motion, source, settings, source.read_frame(view, index))
         result = deblur_frame(
             source, index, view=view, settings=settings, motion=motion, progress=say
         )

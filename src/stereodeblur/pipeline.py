@@ -280,14 +280,19 @@ def frame_motion(scene, index: int, view: str, settings: DeblurSettings, blurred
         exposure=scene.info.exposure,
     )
     motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
-    if not uses_boundary_flow(settings):
-        return motion
-    return replace(motion, boundary_flow=dense_flow(scene, index, view, blurred))
+    return with_boundary_flow(motion, scene, settings, blurred)
 
 
 def uses_boundary_flow(settings: DeblurSettings) -> bool:
     """Whether ``settings`` take the blur near motion boundaries from the dense flow."""
     return settings.boundary_weights == "adaptive" and settings.kernels == "homography"
+
+
+def with_boundary_flow(motion: FrameMotion, scene, settings: DeblurSettings, blurred):
+    """``motion`` with the view's :func:`dense_flow` as ``boundary_flow`` if ``settings`` use it."""
+    if not uses_boundary_flow(settings):
+        return motion
+    return replace(motion, boundary_flow=dense_flow(scene, motion.index, motion.view, blurred))
 
 
 def dense_flow(scene, index: int, view: str, blurred) -> tuple:
@@ -421,9 +426,21 @@ def frame_trust(scene, index: int, view: str, motion: FrameMotion, blurred) -> n
 
 
 def boundary_weighting(
-    scene, index: int, view: str, settings: DeblurSettings, motion: FrameMotion, blurred
+    scene,
+    index: int,
+    view: str,
+    settings: DeblurSettings,
+    motion: FrameMotion,
+    blurred,
+    *,
+    dense_rows: bool = False,
 ):
     """Data weights, weight update, anchor and trust of a run (see DeblurSettings).
+
+    ``dense_rows``: the operator's rows near motion boundaries come from the dense flow
+    (:func:`boundary_motion`), which explains them; no anchor to the blurred frame then,
+    which would only keep their blur (bench paper 640x480, object scenes: +0.15 / +0.08 dB
+    and SSIM +0.003 without it).
 
     Returns
     -------
@@ -435,7 +452,8 @@ def boundary_weighting(
         For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
         (a masked update in ``.update.history``).
     anchor, trust : ndarray, float32, shape (H, W), or None
-        For ``deblur_irls(anchor=...)``, and the trust it came from: the motion's trust
+        For ``deblur_irls(anchor=...)`` (None with ``dense_rows``), and the trust it came
+        from: the motion's trust
         near motion boundaries, 1 elsewhere (what ``alpha='auto'`` reads; it does not
         include the pixels whose exposure path leaves the view).
     """
@@ -459,7 +477,7 @@ def boundary_weighting(
         outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
         weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
         trust = frame_trust(scene, index, view, motion, blurred)
-        anchor = trust_anchor(trust)
+        anchor = None if dense_rows else trust_anchor(trust)
     if settings.boundary_mask == "gt":
         if not (hasattr(scene, "has_gt") and scene.has_gt("mixed", view, index)):
             where = scene.gt_path("mixed", view, index) if hasattr(scene, "gt_path") else "gt/"
@@ -507,17 +525,13 @@ def deblur_frame(
     timings["operator"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     initial, update, anchor, trust = boundary_weighting(
-        scene, index, view, settings, motion, blurred
+        scene, index, view, settings, motion, blurred, dense_rows=flow_rows is not None
     )
     alpha_trust = trust
-    if flow_rows is not None:
-        # The dense flow's rows explain the boundaries: no anchor to the blurred frame, which
-        # would only keep their blur (bench paper 640x480, object scenes: +0.15 / +0.08 dB and
-        # SSIM +0.003 without it). They mend the boundaries, not the segments' misfit
-        # elsewhere: alpha follows the scene flow's own trust (deconv.trust.alpha_from_trust).
-        anchor = None
-        if settings.alpha == "auto":
-            alpha_trust = frame_trust(scene, index, view, own, blurred)
+    if flow_rows is not None and settings.alpha == "auto":
+        # The dense flow mends the boundaries, not the segments' misfit elsewhere: alpha
+        # follows the scene flow's own trust (stereodeblur.deconv.trust.alpha_from_trust).
+        alpha_trust = frame_trust(scene, index, view, own, blurred)
     alpha = resolve_alpha(settings, blurred, alpha_trust)
     result = deblur_irls(
         blurred,
