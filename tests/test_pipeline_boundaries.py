@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
+from stereodeblur.blur.visibility import hidden_fraction, sceneflow_visibility
 from stereodeblur.deconv.noise import auto_alpha
 from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view
+from stereodeblur.deconv.weights import hidden_weights
 from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import (
@@ -35,11 +37,14 @@ def test_gt_mask_keeps_mixed_pixels_at_zero_weight(scene):
         result = deblur_frame(scene, 1, settings=settings)
         assert np.all(result.result.weights[mixed] == 0)
         expected = np.ones(mixed.shape, np.float32)
-        if weights == "adaptive":  # and low where the exposure path leaves the view
-            motion = result.motion
+        if weights == "adaptive":  # low where the exposure path leaves the view, and
+            motion = result.motion  # (true motion: no dense flow) where hidden surfaces show
             duty_cycle = scene.info.exposure.duty_cycle
             outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
             expected[outside] = OUTSIDE_WEIGHT
+            visible = sceneflow_visibility(motion.sceneflow, scene.info.exposure, 8)
+            expected *= hidden_weights(hidden_fraction(visible))
+            assert np.any(expected[mixed] < 1)
         np.testing.assert_array_equal(result.result.weights[~mixed], expected[~mixed])
         assert result.weight_steps == ()
         assert (result.trust is None) == (weights == "none")
@@ -73,6 +78,8 @@ def test_adaptive_trust_with_given_motion_matches_a_fresh_run(scene):
     outside = leaves_view(motion.flow_forward, motion.flow_backward, scene.info.exposure.duty_cycle)
     assert outside.any() and not outside[4:-4, 4:-4].any()  # paths reach ~1 px
     expected = np.where(outside, np.float32(OUTSIDE_WEIGHT), np.float32(1))
+    visible = sceneflow_visibility(motion.sceneflow, scene.info.exposure, 8)
+    expected *= hidden_weights(hidden_fraction(visible))
     np.testing.assert_array_equal(given.result.weights, expected)
     mixed = scene.read_gt_mixed("left", 1)
     assert given.trust[mixed].mean() < given.trust[~mixed].mean()  # boundaries are distrusted
@@ -121,6 +128,30 @@ def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
     assert anchors[0] is None  # the dense flow's rows explain the boundaries
     assert anchors[1] is not None and anchors[1].max() > 0  # the anchor guards the homographies
     assert (hybrid.trust < 1).any() and (plain.trust < 1).any()
+
+
+def test_the_operator_is_occlusion_aware_only_without_dense_flow_rows(scene, monkeypatch):
+    from stereodeblur import pipeline
+
+    visibilities = []
+    build = pipeline.build_operator
+
+    def spy(*args, visible=None, **kwargs):
+        visibilities.append(visible)
+        return build(*args, visible=visible, **kwargs)
+
+    monkeypatch.setattr(pipeline, "build_operator", spy)
+    estimated = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+    deblur_frame(scene, 1, settings=estimated)  # with the dense flow's rows
+    true = DeblurSettings(**FAST)  # true motion: no dense flow
+    result = deblur_frame(scene, 1, settings=true)
+    deblur_frame(scene, 1, settings=DeblurSettings(**FAST, boundary_weights="none"))
+    assert visibilities[0] is None and visibilities[2] is None
+    visible = visibilities[1]
+    assert visible is not None and visible.shape == (8,) + result.motion.sceneflow.shape
+    hidden = hidden_fraction(visible) > 0
+    assert hidden.any()
+    assert np.all(result.result.weights[hidden] < 1)
 
 
 def test_trust_uses_both_neighbouring_frames(scene):

@@ -95,8 +95,10 @@ def _add_deblur_options(p: argparse.ArgumentParser) -> None:
         choices=["adaptive", "paper"],
         default="adaptive",
         help="motion boundaries: adaptive (default: blur from the dense optical flow near "
-        "motion boundaries, else keep the blurred frame where the motion does not predict "
-        "the neighbouring frames) or paper (Eq. 5 data weights as published)",
+        "motion boundaries; without one, each instant shows the surface covering the pixel "
+        "then, pixels showing surfaces hidden at the frame centre are down-weighted and the "
+        "blurred frame is kept where the motion does not predict the neighbouring frames) or "
+        "paper (Eq. 5 data weights as published)",
     )
     w.add_argument(
         "--no-boundary-weights",

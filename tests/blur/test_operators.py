@@ -7,6 +7,7 @@ import scipy.sparse as sp
 from stereodeblur.blur.displacement import displacement_blur
 from stereodeblur.blur.homography import homography_blur
 from stereodeblur.blur.operator import dot_test
+from stereodeblur.blur.visibility import sceneflow_visibility
 from stereodeblur.geometry import Exposure
 
 from .scenes import EXPOSURE, random_sceneflow, smooth_flow
@@ -14,9 +15,10 @@ from .scenes import EXPOSURE, random_sceneflow, smooth_flow
 SHAPE = (40, 56)
 
 
-def _homography(view, exposure=EXPOSURE, speed=1.0, seed=1):
+def _homography(view, exposure=EXPOSURE, speed=1.0, seed=1, layered=False):
     scene = random_sceneflow(SHAPE, seed, view=view, speed=speed)
-    return homography_blur(scene, exposure)
+    visible = sceneflow_visibility(scene, exposure, 70) if layered else None
+    return homography_blur(scene, exposure, visible=visible)
 
 
 def _displacement(backward, exposure=EXPOSURE, speed=1.0, seed=2):
@@ -32,6 +34,7 @@ def _displacement(backward, exposure=EXPOSURE, speed=1.0, seed=2):
 REGISTRY = {
     "homography-left": lambda **kw: _homography("left", **kw),
     "homography-right": lambda **kw: _homography("right", **kw),
+    "homography-layered": lambda **kw: _homography("left", layered=True, **kw),
     "displacement-mirrored": lambda **kw: _displacement("mirrored", **kw),
     "displacement-independent": lambda **kw: _displacement("independent", **kw),
 }

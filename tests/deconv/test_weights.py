@@ -9,6 +9,7 @@ from stereodeblur.deconv import deblur_irls
 from stereodeblur.deconv.weights import (
     PAPER_K_SIGMA,
     PaperWeights,
+    hidden_weights,
     initial_weights_from_occlusion,
     residual_image,
     residual_norm,
@@ -93,6 +94,13 @@ def test_paper_weights_decay_on_noise_where_the_model_is_exact(exact_problem):
 
 
 # --- pictures ----------------------------------------------------------------------------------
+
+
+def test_hidden_weights():
+    share = np.array([[0.0, 0.1, 0.25], [0.5, 0.75, 1.0]])
+    np.testing.assert_allclose(hidden_weights(share), [[1.0, 0.8, 0.5], [0.0, 0.0, 0.0]])
+    assert hidden_weights(share).dtype == np.float32
+    np.testing.assert_allclose(hidden_weights(share, slope=1.0)[1], [0.5, 0.25, 0.0])
 
 
 def test_weight_and_residual_images(tmp_path):

@@ -39,6 +39,7 @@ _MIN_CHUNK = 4096
 """Fewer rows than this per chunk are not worth a thread."""
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
+_NO_VISIBILITY = np.zeros((0, 1, 1), np.int16)
 
 
 def _chunks(num_rows: int, per_thread: int = 8) -> list[tuple[int, int]]:
@@ -75,7 +76,7 @@ def _executor() -> ThreadPoolExecutor:
         return _pool
 
 
-def _run(function, ranges, *args) -> list:
+def run_ranges(function, ranges, *args) -> list:
     """``function(first, last, *args)`` for every range, in parallel; results in order."""
     if len(ranges) == 1:
         return [function(ranges[0][0], ranges[0][1], *args)]
@@ -240,36 +241,45 @@ def _merge_taps_sorted(px, py, n, drop_outside, height, width, divisor, out_idx,
 
 @njit(**_JIT)
 def _item_positions(
-    kind, item, px, py, homographies, labels, item_x, item_y, item_src, flows, fractions
+    kind, item, px, py, homographies, labels, visible, item_x, item_y, item_src, flows, fractions
 ):
-    """Fill ``px``/``py`` with the sample positions of one item (see trajectories)."""
+    """Fill ``px``/``py`` with the sample positions of one item (see trajectories).
+
+    With per-instant ``visible`` segments (homography kernels, :mod:`.visibility`) every
+    instant samples the segment visible then; where that is a surface hidden at the
+    reference instant (label < 0), the pixel's own segment stands in.
+    """
     height, width = labels.shape
     n = px.size
     if kind == _KIND_HOMOGRAPHY:
         y = item // width
         x = item - y * width
-        lab = labels[y, x]
+        own = labels[y, x]
+        layered = visible.shape[0] == n
         for k in range(n):
+            lab = own
+            if layered and visible[k, y, x] >= 0:
+                lab = visible[k, y, x]
             qx, qy = homography_point(homographies, lab, k, float(x), float(y))
             px[k] = clamp(qx, width - 1)
             py[k] = clamp(qy, height - 1)
-    else:
-        src = item_src[item]
-        sy = src // width
-        sx = src - sy * width
-        fu = flows[0, sy, sx, 0]
-        fv = flows[0, sy, sx, 1]
-        bu = flows[1, sy, sx, 0]
-        bv = flows[1, sy, sx, 1]
-        x = float(item_x[item])
-        y = float(item_y[item])
-        for k in range(n):
-            px[k], py[k] = displacement_point(x, y, fractions[k], fu, fv, bu, bv)
+        return
+    src = item_src[item]
+    sy = src // width
+    sx = src - sy * width
+    fu = flows[0, sy, sx, 0]
+    fv = flows[0, sy, sx, 1]
+    bu = flows[1, sy, sx, 0]
+    bv = flows[1, sy, sx, 1]
+    x = float(item_x[item])
+    y = float(item_y[item])
+    for k in range(n):
+        px[k], py[k] = displacement_point(x, y, fractions[k], fu, fv, bu, bv)
 
 
 @njit(**_JIT)
 def _assemble_range(
-    first, last, kind, homographies, labels, item_x, item_y, item_src, flows, fractions
+    first, last, kind, homographies, labels, visible, item_x, item_y, item_src, flows, fractions
 ):
     """Taps of items ``first .. last - 1``: ``(counts int64, indices int32, values float32)``."""
     height, width = labels.shape
@@ -296,7 +306,18 @@ def _assemble_range(
             grown_val[:pos] = out_val[:pos]
             out_val = grown_val
         _item_positions(
-            kind, item, px, py, homographies, labels, item_x, item_y, item_src, flows, fractions
+            kind,
+            item,
+            px,
+            py,
+            homographies,
+            labels,
+            visible,
+            item_x,
+            item_y,
+            item_src,
+            flows,
+            fractions,
         )
         c = _merge_taps(
             px,
@@ -318,14 +339,17 @@ def _assemble_range(
     return counts, out_idx[:pos], out_val[:pos]
 
 
-def _assemble(kind, num_items, homographies, labels, item_x, item_y, item_src, flows, fractions):
+def _assemble(
+    kind, num_items, homographies, labels, visible, item_x, item_y, item_src, flows, fractions
+):
     """CSR arrays ``(indptr int64, indices int32, values float32)`` of all items' taps."""
-    parts = _run(
+    parts = run_ranges(
         _assemble_range,
         _chunks(num_items),
         kind,
         homographies,
         labels,
+        visible,
         item_x,
         item_y,
         item_src,
@@ -347,13 +371,30 @@ def _assemble(kind, num_items, homographies, labels, item_x, item_y, item_src, f
     return indptr, indices, values
 
 
-def assemble_homography(homographies: np.ndarray, labels: np.ndarray, num_samples: int):
-    """CSR arrays of the homography operator (rows already divided by ``num_samples``)."""
+def assemble_homography(
+    homographies: np.ndarray, labels: np.ndarray, num_samples: int, visible=None
+):
+    """CSR arrays of the homography operator (rows already divided by ``num_samples``).
+
+    ``visible`` (int32 ``(num_samples, H, W)``) gives the segment of every pixel at every
+    instant (:mod:`.visibility`); None: ``labels`` throughout.
+    """
     dummy = np.zeros(1, np.int32)
     flows = np.zeros((2, 1, 1, 2), np.float64)
     fractions = np.zeros(num_samples, np.float64)
+    if visible is None:
+        visible = _NO_VISIBILITY
     return _assemble(
-        _KIND_HOMOGRAPHY, labels.size, homographies, labels, dummy, dummy, dummy, flows, fractions
+        _KIND_HOMOGRAPHY,
+        labels.size,
+        homographies,
+        labels,
+        visible,
+        dummy,
+        dummy,
+        dummy,
+        flows,
+        fractions,
     )
 
 
@@ -373,6 +414,7 @@ def assemble_splats(
         item_x.size,
         homographies,
         labels,
+        _NO_VISIBILITY,
         item_x,
         item_y,
         item_src,
@@ -435,11 +477,13 @@ def transpose(indptr, indices, data, num_cols, row_label=None):
     parts = numba.get_num_threads() if nnz >= _MIN_CHUNK * 16 else 1
     ranges = _nnz_ranges(indptr, parts)
     counts = np.empty((len(ranges), num_cols), np.int64)
-    _run(lambda a, b: _count_columns(a, b, indptr, indices, counts[_index(ranges, a)]), ranges)
+    run_ranges(
+        lambda a, b: _count_columns(a, b, indptr, indices, counts[_index(ranges, a)]), ranges
+    )
     out_indptr = _column_positions(counts)
     out_idx = np.empty(nnz, row_label.dtype)
     out_val = np.empty(nnz, data.dtype)
-    _run(
+    run_ranges(
         lambda a, b: _scatter_columns(
             a, b, indptr, indices, data, row_label, counts[_index(ranges, a)], out_idx, out_val
         ),
@@ -505,13 +549,13 @@ def normalise_rows(indptr, indices, values, min_total):
     unique = np.empty(num_rows, np.int64)
     totals = np.empty(num_rows, np.float64)
     ranges = _chunks(num_rows)
-    _run(_merge_rows, ranges, indptr, indices, values, indices, values, unique, totals)
+    run_ranges(_merge_rows, ranges, indptr, indices, values, indices, values, unique, totals)
     covered = totals >= min_total
     out_indptr = np.zeros(num_rows + 1, np.int64)
     np.cumsum(np.where(covered, unique, 1), out=out_indptr[1:])
     out_idx = np.empty(out_indptr[-1], np.int32)
     out_val = np.empty(out_indptr[-1], np.float32)
-    _run(
+    run_ranges(
         _write_normalised,
         ranges,
         indptr,
@@ -561,4 +605,4 @@ def csr_matmat(indptr, indices, data, x, out) -> None:
     """
     work = int(indptr[-1]) * x.shape[1]
     parts = 2 * numba.get_num_threads() if work >= 64 * _MIN_CHUNK else 1
-    _run(_matmat_rows, _nnz_ranges(indptr, parts), indptr, indices, data, x, out)
+    run_ranges(_matmat_rows, _nnz_ranges(indptr, parts), indptr, indices, data, x, out)

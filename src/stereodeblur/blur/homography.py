@@ -2,9 +2,10 @@
 
 Row ``x`` of the operator is the discretised exposure integral of Eq. 3-4:
 the mean over the ``N`` instants ``t`` of the sharp reference image, bilinearly
-interpolated at ``H_ref_from_t[label(x), t] @ x``. Sample instants, positions,
-bilinear weights and the border rule (clamp to the image, i.e. replicate edge
-content) are those of :mod:`.trajectories`; duplicate taps are summed.
+interpolated at ``H_ref_from_t[label(x), t] @ x``; with per-instant segments
+(:mod:`.visibility`), ``label(x)`` is the segment the pixel shows at ``t``. Sample
+instants, positions, bilinear weights and the border rule (clamp to the image, i.e.
+replicate edge content) are those of :mod:`.trajectories`; duplicate taps are summed.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ def _inputs(sceneflow: SceneFlow, exposure: Exposure, num_samples) -> tuple:
 
 
 def homography_blur(
-    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70
+    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70, visible=None
 ) -> SparseBlur:
     """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
 
@@ -59,6 +60,11 @@ def homography_blur(
         Frame rate and exposure time; the instants are ``exposure.sample_fractions``.
     num_samples : int, optional
         Number ``N`` of instants in the exposure integral (paper: ``N = 70``).
+    visible : ndarray of int, shape (N, H, W), optional
+        The segment each pixel shows at each instant
+        (:func:`~stereodeblur.blur.visibility.sceneflow_visibility`); where it is
+        :data:`~stereodeblur.blur.visibility.HIDDEN`, the pixel's own segment stands in.
+        None (the paper's Eq. 3-4): every pixel shows its own segment throughout.
 
     Returns
     -------
@@ -67,13 +73,19 @@ def homography_blur(
         Every row sums to one.
     """
     homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
-    indptr, indices, data = _kernels.assemble_homography(homographies, labels, num_samples)
+    if visible is not None:
+        visible = np.asarray(visible)
+        if visible.shape != (num_samples,) + labels.shape:
+            raise ValueError(
+                f"visible has shape {visible.shape}, expected {(num_samples,) + labels.shape}"
+            )
+    indptr, indices, data = _kernels.assemble_homography(homographies, labels, num_samples, visible)
     matrix = csr_from_arrays(indptr, indices, data, labels.size)
     return SparseBlur(matrix, tuple(labels.shape))
 
 
 def homography_blur_reference(
-    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70
+    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70, visible=None
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`homography_blur`.
 
@@ -82,11 +94,13 @@ def homography_blur_reference(
     """
     homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
     size = labels.size
+    if visible is not None:
+        labels = np.moveaxis(np.where(visible >= 0, visible, labels), 0, -1)
     positions = homography_positions(homographies, labels).reshape(size, num_samples, 2)
-    index, weight, valid = bilinear_taps(positions, labels.shape, border="clamp")
+    index, weight, valid = bilinear_taps(positions, sceneflow.shape, border="clamp")
     rows = np.broadcast_to(np.arange(size)[:, None, None], index.shape)
     matrix = sp.coo_matrix((weight[valid], (rows[valid], index[valid])), shape=(size, size)).tocsr()
     matrix.sum_duplicates()
     matrix.data = (matrix.data / num_samples).astype(np.float32)
     matrix.sort_indices()
-    return SparseBlur(matrix, tuple(labels.shape))
+    return SparseBlur(matrix, tuple(sceneflow.shape))

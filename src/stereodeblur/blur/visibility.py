@@ -1,0 +1,153 @@
+"""Which segment every pixel shows at every instant of the exposure (occlusion-aware blur).
+
+A piecewise-rigid scene flow labels the pixels at the reference instant, and the
+paper's operator (Eq. 3-4) lets every blurred pixel show its own segment for the
+whole exposure. Near motion boundaries that is wrong: a moving surface sweeps
+over the pixels next to it, and behind it a surface reappears that the reference
+instant does not show. Here every instant gets the segment that covers the pixel
+then, the nearest to the camera where several do.
+
+Segment ``s`` covers pixel ``x`` at instant ``t`` if the reference pixel nearest to
+``H_ref_from_t[s, t] x`` belongs to ``s``. Surfaces are ordered by their inverse
+depth at that reference pixel: objects do not pass through each other within an
+exposure, and the depth at the reference instant does not depend on how the
+motion between the frames is split into rotation and translation (which is
+ambiguous for a small planar patch). The candidates for a pixel are its own
+segment and the segments that a z-buffered forward mapping of all reference
+pixels to instant ``t`` puts at the pixel or its eight neighbours. A pixel no
+segment covers shows, at that instant, a surface hidden at the reference instant
+(:data:`HIDDEN`): the reference image holds nothing that explains it.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import njit
+
+from ..geometry.camera import Exposure
+from ..geometry.plane import plane_in_view
+from ..sceneflow.model import SceneFlow
+from . import _kernels
+
+HIDDEN = -1
+"""Label of a pixel that shows, at that instant, a surface hidden at the reference instant."""
+
+_JIT = dict(cache=True, nogil=True, error_model="numpy")
+
+
+@njit(**_JIT)
+def _map(H, s, t, x, y):
+    """``H[s, t] @ (x, y, 1)`` normalised, and whether it is in front of the camera."""
+    w = H[s, t, 2, 0] * x + H[s, t, 2, 1] * y + H[s, t, 2, 2]
+    if not w > 1e-12:
+        return 0.0, 0.0, False
+    px = (H[s, t, 0, 0] * x + H[s, t, 0, 1] * y + H[s, t, 0, 2]) / w
+    py = (H[s, t, 1, 0] * x + H[s, t, 1, 1] * y + H[s, t, 1, 2]) / w
+    return px, py, np.isfinite(px) and np.isfinite(py)
+
+
+@njit(**_JIT)
+def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
+    """Visible segment of every pixel at instants ``first .. last - 1``, into ``out``."""
+    height, width = labels.shape
+    nearest = np.empty((height, width), np.float64)
+    splat = np.empty((height, width), np.int32)
+    for t in range(first, last):
+        # Forward z-buffer: the nearest segment mapped onto each pixel.
+        nearest[:] = -np.inf
+        splat[:] = HIDDEN
+        for y in range(height):
+            for x in range(width):
+                s = labels[y, x]
+                qx, qy, ok = _map(t_from_ref, s, t, float(x), float(y))
+                if not ok:
+                    continue
+                ix = np.int64(np.floor(qx + 0.5))
+                iy = np.int64(np.floor(qy + 0.5))
+                if 0 <= ix < width and 0 <= iy < height:
+                    d = inverse_depth[s, 0] * x + inverse_depth[s, 1] * y + inverse_depth[s, 2]
+                    if d > nearest[iy, ix]:
+                        nearest[iy, ix] = d
+                        splat[iy, ix] = s
+        # Backward check of the candidates; the nearest covering one wins.
+        for y in range(height):
+            for x in range(width):
+                own = labels[y, x]
+                best = HIDDEN
+                best_d = -np.inf
+                for k in range(-1, 9):
+                    if k < 0:
+                        c = own
+                    else:
+                        ny = y + k // 3 - 1
+                        nx = x + k % 3 - 1
+                        if nx < 0 or ny < 0 or nx >= width or ny >= height:
+                            continue
+                        c = splat[ny, nx]
+                    if c < 0 or c == best:
+                        continue
+                    px, py, ok = _map(ref_from_t, c, t, float(x), float(y))
+                    if not ok:
+                        continue
+                    ix = np.int64(np.floor(px + 0.5))
+                    iy = np.int64(np.floor(py + 0.5))
+                    if ix < 0 or iy < 0 or ix >= width or iy >= height:
+                        if c != own:  # content entering the view: the own segment's
+                            continue
+                    elif labels[iy, ix] != c:
+                        continue
+                    d = inverse_depth[c, 0] * px + inverse_depth[c, 1] * py + inverse_depth[c, 2]
+                    if d > best_d:
+                        best_d = d
+                        best = c
+                out[t, y, x] = best
+
+
+def visible_labels(
+    ref_from_t: np.ndarray, labels: np.ndarray, inverse_depth: np.ndarray
+) -> np.ndarray:
+    """Segment shown by every pixel at every instant.
+
+    Parameters
+    ----------
+    ref_from_t : ndarray, shape (L, S, 3, 3)
+        ``H_ref_from_t`` per segment and instant.
+    labels : ndarray of int, shape (H, W)
+        Segments at the reference instant.
+    inverse_depth : ndarray, shape (L, 3)
+        Inverse depth of segment ``s`` at reference pixel ``(x, y)`` is
+        ``inverse_depth[s] . (x, y, 1)`` (any positive scale).
+
+    Returns
+    -------
+    ndarray, shape (S, H, W)
+        int16 (int32 from 32768 segments on); :data:`HIDDEN` where no segment of the
+        reference instant covers the pixel.
+    """
+    ref_from_t = np.ascontiguousarray(ref_from_t, dtype=np.float64)
+    t_from_ref = np.ascontiguousarray(np.linalg.inv(ref_from_t))
+    labels = np.ascontiguousarray(labels, dtype=np.int32)
+    inverse_depth = np.ascontiguousarray(inverse_depth, dtype=np.float64)
+    num_segments, num_samples = ref_from_t.shape[:2]
+    dtype = np.int16 if num_segments <= np.iinfo(np.int16).max else np.int32
+    out = np.empty((num_samples,) + labels.shape, dtype)
+    parts = min(num_samples, 4 * numba.get_num_threads())
+    bounds = np.linspace(0, num_samples, parts + 1).round().astype(int)
+    ranges = [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
+    _kernels.run_ranges(_instants, ranges, ref_from_t, t_from_ref, inverse_depth, labels, out)
+    return out
+
+
+def sceneflow_visibility(sceneflow: SceneFlow, exposure: Exposure, num_samples: int) -> np.ndarray:
+    """:func:`visible_labels` of ``sceneflow``'s view at ``exposure.sample_fractions``."""
+    homographies = sceneflow.homographies(exposure.sample_fractions(num_samples))
+    camera = sceneflow.camera
+    center = camera.center(sceneflow.view)
+    planes = np.stack([plane_in_view(n, center) for n in sceneflow.normals])
+    return visible_labels(homographies, sceneflow.labels, planes @ camera.K_inv)
+
+
+def hidden_fraction(visible: np.ndarray) -> np.ndarray:
+    """Share of the instants at which each pixel shows a hidden surface, float32 (H, W)."""
+    return np.mean(visible == HIDDEN, axis=0, dtype=np.float32)

@@ -1,0 +1,84 @@
+"""The segment each pixel shows at each instant (occlusion-aware blur operator)."""
+
+import numpy as np
+import pytest
+
+from stereodeblur.blur.homography import homography_blur, homography_blur_reference
+from stereodeblur.blur.visibility import HIDDEN, hidden_fraction, sceneflow_visibility
+from stereodeblur.sceneflow.model import SceneFlow
+
+from .scenes import EXPOSURE, camera, random_sceneflow, translation_sceneflow
+
+SHAPE = (40, 56)
+ROWS, COLS = slice(10, 30), (20, 35)  # the near rectangle at the reference instant
+
+
+def _rectangle_over_background(flow_px: float) -> SceneFlow:
+    """A static background at depth 4 and a rectangle at depth 2 moving ``flow_px`` to the right."""
+    cam = camera(SHAPE)
+    labels = np.zeros(SHAPE, np.int32)
+    labels[ROWS, COLS[0] : COLS[1] + 1] = 1
+    normals = np.array([[0, 0, 1 / 4.0], [0, 0, 1 / 2.0]])
+    velocity = flow_px * 2.0 / cam.K[0, 0]
+    twists = np.array([np.zeros(6), [velocity, 0, 0, 0, 0, 0]])
+    return SceneFlow(cam, labels, normals, twists, np.zeros(SHAPE, bool))
+
+
+@pytest.mark.parametrize("flow_px", [8.0, -5.0])
+def test_moving_rectangle_covers_and_uncovers_the_background(flow_px):
+    sf = _rectangle_over_background(flow_px)
+    num_samples = 9
+    visible = sceneflow_visibility(sf, EXPOSURE, num_samples)
+    assert visible.shape == (num_samples,) + SHAPE
+    x = np.arange(SHAPE[1])
+    expected = np.zeros((num_samples,) + SHAPE, np.int32)
+    for k, s in enumerate(EXPOSURE.sample_fractions(num_samples)):
+        source = np.floor(x - s * flow_px + 0.5)  # reference column the rectangle shows at x
+        on_rectangle = (source >= COLS[0]) & (source <= COLS[1])
+        was_rectangle = (x >= COLS[0]) & (x <= COLS[1])
+        expected[k, ROWS] = np.where(on_rectangle, 1, np.where(was_rectangle, HIDDEN, 0))
+    np.testing.assert_array_equal(visible, expected)
+    # The trailing edge uncovers background for up to half the exposure, the leading edge
+    # is swept over the background.
+    share = hidden_fraction(visible)
+    trailing = COLS[0] if flow_px > 0 else COLS[1]
+    assert 0.3 < share[20, trailing] <= 0.5
+    assert share[20, (COLS[0] + COLS[1]) // 2] == 0
+    leading = COLS[1] + 1 if flow_px > 0 else COLS[0] - 1
+    assert 0.3 < np.mean(visible[:, 20, leading] == 1) <= 0.5
+
+
+def test_a_single_surface_shows_itself_and_gives_the_papers_operator():
+    sf = translation_sceneflow(SHAPE, (0.4, -0.2))
+    visible = sceneflow_visibility(sf, EXPOSURE, 15)
+    assert np.all(visible == 0)
+    layered = homography_blur(sf, EXPOSURE, num_samples=15, visible=visible).matrix
+    paper = homography_blur(sf, EXPOSURE, num_samples=15).matrix
+    assert abs(layered - paper).max() == 0
+
+
+@pytest.mark.parametrize("view", ["left", "right"])
+def test_layered_operator_equals_numpy_reference(view):
+    sf = random_sceneflow(SHAPE, 3, view=view, grid=(3, 4), speed=2.0)
+    visible = sceneflow_visibility(sf, EXPOSURE, 20)
+    assert np.any((visible != sf.labels) & (visible != HIDDEN))  # segments do sweep
+    assert np.any(visible == HIDDEN)
+    fast = homography_blur(sf, EXPOSURE, num_samples=20, visible=visible).matrix
+    slow = homography_blur_reference(sf, EXPOSURE, num_samples=20, visible=visible).matrix
+    assert abs(fast - slow).max() < 1e-6
+    assert abs(fast - homography_blur(sf, EXPOSURE, num_samples=20).matrix).max() > 0.1
+
+
+def test_visibility_is_deterministic_and_thread_independent(monkeypatch):
+    import numba
+
+    sf = random_sceneflow(SHAPE, 4, grid=(3, 4), speed=2.0)
+    first = sceneflow_visibility(sf, EXPOSURE, 12)
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 1)
+    np.testing.assert_array_equal(sceneflow_visibility(sf, EXPOSURE, 12), first)
+
+
+def test_visible_shape_is_checked():
+    sf = translation_sceneflow(SHAPE, (0.4, 0.0))
+    with pytest.raises(ValueError, match="visible has shape"):
+        homography_blur(sf, EXPOSURE, num_samples=5, visible=np.zeros((4,) + SHAPE, np.int16))
