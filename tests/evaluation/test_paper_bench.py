@@ -11,6 +11,7 @@ from stereodeblur.evaluation.paper_bench import (
     ALPHA_SWEEP,
     COLUMNS,
     MASKED_COLUMNS,
+    TRUE_MOTION,
     sweep_column,
     weight_statistics,
 )
@@ -43,12 +44,13 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     text = capsys.readouterr().out
     for column in COLUMNS:
         assert column.title in text
-    for heading in ("Table 2", "Table 3", "Table 4", "Alpha sweep", "weights"):
+    for heading in ("Table 2", "Table 3", "Table 4", "true motion", "Alpha sweep", "weights"):
         assert heading in text
     folder = work / "64x48"
     assert (folder / "paper.md").read_text() == text.rstrip("\n") + "\n"
     (row,) = json.loads((folder / "paper.json").read_text())
-    keys = [c.key for c in COLUMNS + MASKED_COLUMNS] + [sweep_column(a).key for a in ALPHA_SWEEP]
+    keys = [c.key for c in COLUMNS + MASKED_COLUMNS + (TRUE_MOTION,)]
+    keys += [sweep_column(a).key for a in ALPHA_SWEEP]
     assert sorted(row["columns"]) == sorted(keys)
     for key, entry in row["columns"].items():
         assert 10 < entry["psnr"] < 60 and 0 < entry["ssim"] <= 1, key
@@ -57,6 +59,8 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     assert row["columns"]["homographies"]["alpha"] == 1e-3
     assert not math.isnan(row["columns"]["homographies"]["ade"])
     assert not math.isnan(row["columns"]["initial-flow"]["aep"])
+    assert math.isnan(row["columns"]["ours-true-motion"]["aep"])
+    assert "ours with the true motion - initial optical flow" in text
     assert 0 <= row["columns"]["ours-full"]["changed_last_percent"] <= 100
     figure = read_png(folder / "figures" / "squares.png")
     assert figure.shape[1] == 64 * (len(COLUMNS) + 2)
@@ -66,7 +70,7 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     assert "Table 3" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("column", COLUMNS + MASKED_COLUMNS, ids=lambda c: c.key)
+@pytest.mark.parametrize("column", COLUMNS + MASKED_COLUMNS + (TRUE_MOTION,), ids=lambda c: c.key)
 def test_every_column_is_a_combination_of_the_cli_switches(column):
     args = build_parser().parse_args(["deblur", "scene", "-o", "out", *column.flags().split()])
     from stereodeblur.cli import _settings

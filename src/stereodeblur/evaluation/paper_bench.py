@@ -16,7 +16,9 @@ ours (full)                   sceneflow        homography    adaptive           
 
 Table 2 ("without motion discontinuities") repeats the first four with
 ``boundary_mask='gt'``: the scene's gt/mixed pixels get weight 0 throughout.
-Tables 3 (PSNR) and 4 (SSIM) use all six columns without the mask. AEP is the
+Tables 3 (PSNR) and 4 (SSIM) use all six columns without the mask. A seventh run,
+"ours, true motion" (:data:`TRUE_MOTION`: ours full with motion source gt), is no method
+but shows how far a perfect motion estimate would take the blur model. AEP is the
 mean endpoint error of the 2D motion a column's kernels come from against
 gt/flow; ADE the mean absolute disparity error of the scene flow against
 gt/disparity. PSNR and SSIM skip a border of 2.5 % of the width (content that
@@ -124,6 +126,12 @@ MASKED_COLUMNS = tuple(
 """Table 2: the 2D and 3D kernels with gt/mixed masked out."""
 
 FULL_KEYS = ("paper-full", "ours-full")
+
+TRUE_MOTION = Column(
+    "ours-true-motion", "ours, true motion", "gt", "homography", "adaptive", "auto"
+)
+"""Ours (full) with the scene flow fitted to the true disparity and flow: how far a better
+motion estimate could take the blur model (not a method; kept out of Tables 3 and 4)."""
 
 
 def sweep_column(alpha: float) -> Column:
@@ -573,6 +581,28 @@ def table_sweep(rows) -> str:
     return "\n".join(lines)
 
 
+def table_true_motion(rows) -> str:
+    """PSNR / SSIM of ours with the estimated and the true motion, and the initial flow."""
+    keys = ("initial-flow", "ours-full", TRUE_MOTION.key)
+    head = (
+        "| scene | initial optical flow | ours (full) | ours, true motion |\n|---|---:|---:|---:|"
+    )
+    out = []
+    for label, group in _groups(rows):
+        lines = [f"**{label}**", "", head]
+        for r in group + ["mean"]:
+            rr = group if r == "mean" else [r]
+            cells = [
+                f"{_fmt(_mean_row(rr, lambda x, k=k: _value(x, k, 'psnr')))} / "
+                f"{_fmt(_mean_row(rr, lambda x, k=k: _value(x, k, 'ssim')), 3)}"
+                for k in keys
+            ]
+            name = "mean" if r == "mean" else r.scene
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        out.append("\n".join(lines))
+    return "\n\n".join(out)
+
+
 def summary(rows, *, sweep: bool) -> list[str]:
     """The issue's checks, as sentences (object scenes; noiseless and noisy separately)."""
     out = []
@@ -599,6 +629,13 @@ def summary(rows, *, sweep: bool) -> list[str]:
             f"= {np.nanmean(d_flow):+.2f} dB mean; best mean SSIM: {best_ssim} "
             f"({ssim_means[best_ssim]:.3f}; ours {ssim_means['ours-full']:.3f})"
         )
+        d_true = diff(TRUE_MOTION.key, "initial-flow")
+        if not np.all(np.isnan(d_true)):
+            out.append(
+                f"object scenes, {label}: ours with the true motion - initial optical flow = "
+                f"{np.nanmean(d_true):+.2f} dB mean ({np.nanmin(d_true):+.2f} to "
+                f"{np.nanmax(d_true):+.2f})"
+            )
         explained = [_value(r, "ours-full", "low_weight_explained_percent") for r in group]
         changed = [_value(r, "ours-full", "changed_last_percent") for r in group]
         out.append(
@@ -641,13 +678,15 @@ def report(rows, *, sweep: bool, command: str, seconds: float) -> str:
         table_metric(rows, "psnr"),
         "## Table 4: deblurring with motion boundaries (SSIM)",
         table_metric(rows, "ssim"),
+        "## Ours with the true motion (PSNR dB / SSIM)",
+        table_true_motion(rows),
         "## Motion-boundary weights of the full methods",
         table_weights(rows),
     ]
     if sweep:
         parts += ["## Alpha sweep: ours (full) at fixed alpha vs auto (PSNR dB)", table_sweep(rows)]
     parts += ["## Checks", "\n".join(f"- {s}" for s in summary(rows, sweep=sweep))]
-    parts += ["## Columns", legend(COLUMNS + MASKED_COLUMNS)]
+    parts += ["## Columns", legend(COLUMNS + (TRUE_MOTION,) + MASKED_COLUMNS)]
     return "\n\n".join(parts) + "\n"
 
 
@@ -669,7 +708,8 @@ def main(args) -> int:
     for name in names:
         scene_kind(name)
     work = Path(args.work) / size
-    columns = list(COLUMNS) + ([] if args.no_masked else list(MASKED_COLUMNS))
+    columns = list(COLUMNS) + [TRUE_MOTION]
+    columns += [] if args.no_masked else list(MASKED_COLUMNS)
     if args.alpha_sweep:
         columns += [sweep_column(a) for a in ALPHA_SWEEP]
     base = DeblurSettings(
