@@ -391,7 +391,7 @@ def visibility(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings
     lets each instant show the surface that covers the pixel then
     (:mod:`stereodeblur.blur.visibility`) and the pixels that show surfaces hidden at
     the reference instant get :func:`~stereodeblur.deconv.weights.hidden_weights`. With
-    the true motion of the object scenes that gained 1.4 dB at 640x480 (all five scenes);
+    the true motion of the ten object scenes at 640x480 that gained 1.16 dB (every scene);
     with the estimated scene flow, whose boundaries lie somewhere in the blurred edges,
     the dense flow's rows there are better (same result with or without it on top).
     """

@@ -109,8 +109,8 @@ def hidden_weights(hidden_share: np.ndarray, *, slope: float = HIDDEN_SLOPE) -> 
     ``h`` is the share of the exposure during which the pixel shows a surface that the
     reference instant hides (:func:`stereodeblur.blur.visibility.hidden_fraction`): no blur
     model of the reference image explains that part of the pixel. With the true motion of
-    the object scenes (320x240), slopes 1, 2 and 4 are within 0.1 dB of each other on
-    average and 1-3 dB above weight 1.
+    the object scenes (320x240, the pipeline's defaults), slopes 1, 2 and 4 are within
+    0.05 dB of each other on average and 0.36 dB above weight 1.
 
     Returns
     -------
