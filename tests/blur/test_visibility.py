@@ -78,7 +78,12 @@ def test_visibility_is_deterministic_and_thread_independent(monkeypatch):
     np.testing.assert_array_equal(sceneflow_visibility(sf, EXPOSURE, 12), first)
 
 
-def test_visible_shape_is_checked():
+def test_visible_is_checked():
     sf = translation_sceneflow(SHAPE, (0.4, 0.0))
     with pytest.raises(ValueError, match="visible has shape"):
         homography_blur(sf, EXPOSURE, num_samples=5, visible=np.zeros((4,) + SHAPE, np.int16))
+    for bad in (np.ones((5,) + SHAPE, np.int16), np.full((5,) + SHAPE, -2), np.zeros((5,) + SHAPE)):
+        with pytest.raises(ValueError, match="segment labels"):
+            homography_blur(sf, EXPOSURE, num_samples=5, visible=bad)
+    as_int64 = homography_blur(sf, EXPOSURE, num_samples=5, visible=np.zeros((5,) + SHAPE, int))
+    assert abs(as_int64.matrix - homography_blur(sf, EXPOSURE, num_samples=5).matrix).max() == 0

@@ -376,8 +376,8 @@ def assemble_homography(
 ):
     """CSR arrays of the homography operator (rows already divided by ``num_samples``).
 
-    ``visible`` (int32 ``(num_samples, H, W)``) gives the segment of every pixel at every
-    instant (:mod:`.visibility`); None: ``labels`` throughout.
+    ``visible`` (int16 or int32 ``(num_samples, H, W)``) gives the segment of every pixel at
+    every instant (:mod:`.visibility`); None: ``labels`` throughout.
     """
     dummy = np.zeros(1, np.int32)
     flows = np.zeros((2, 1, 1, 2), np.float64)

@@ -28,6 +28,19 @@ def _check_num_samples(num_samples) -> int:
     return int(num_samples)
 
 
+def _check_visible(visible, num_samples: int, shape, num_segments: int) -> np.ndarray:
+    """``visible`` as a contiguous int16 / int32 array, after checking shape and labels."""
+    visible = np.asarray(visible)
+    if visible.shape != (num_samples,) + tuple(shape):
+        raise ValueError(f"visible has shape {visible.shape}, expected {(num_samples,) + shape}")
+    if not np.issubdtype(visible.dtype, np.integer) or (
+        visible.size and (visible.min() < -1 or visible.max() >= num_segments)
+    ):
+        raise ValueError(f"visible must hold segment labels in [-1, {num_segments})")
+    dtype = np.int16 if num_segments <= np.iinfo(np.int16).max else np.int32
+    return np.ascontiguousarray(visible, dtype=dtype)
+
+
 def csr_from_arrays(indptr, indices, data, size: int) -> sp.csr_matrix:
     """A ``size x size`` CSR matrix, with int32 index arrays when they fit."""
     if indptr[-1] < np.iinfo(np.int32).max:
@@ -74,11 +87,7 @@ def homography_blur(
     """
     homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
     if visible is not None:
-        visible = np.asarray(visible)
-        if visible.shape != (num_samples,) + labels.shape:
-            raise ValueError(
-                f"visible has shape {visible.shape}, expected {(num_samples,) + labels.shape}"
-            )
+        visible = _check_visible(visible, num_samples, labels.shape, homographies.shape[0])
     indptr, indices, data = _kernels.assemble_homography(homographies, labels, num_samples, visible)
     matrix = csr_from_arrays(indptr, indices, data, labels.size)
     return SparseBlur(matrix, tuple(labels.shape))

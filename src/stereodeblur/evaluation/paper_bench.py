@@ -17,8 +17,9 @@ ours (full)                   sceneflow        homography    adaptive           
 Table 2 ("without motion discontinuities") repeats the first four with
 ``boundary_mask='gt'``: the scene's gt/mixed pixels get weight 0 throughout.
 Tables 3 (PSNR) and 4 (SSIM) use all six columns without the mask. A seventh run,
-"ours, true motion" (:data:`TRUE_MOTION`: ours full with motion source gt), is no method
-but shows how far a perfect motion estimate would take the blur model. AEP is the
+"ours, true motion" (:data:`TRUE_MOTION`: ours full with motion source gt, the same
+piecewise-planar model fitted to the true disparity and flow), is no method but shows how
+far a better motion estimate could take the blur model. AEP is the
 mean endpoint error of the 2D motion a column's kernels come from against
 gt/flow; ADE the mean absolute disparity error of the scene flow against
 gt/disparity. PSNR and SSIM skip a border of 2.5 % of the width (content that
