@@ -29,25 +29,13 @@ from ..geometry.camera import Exposure
 from ..geometry.plane import plane_in_view
 from ..sceneflow.model import SceneFlow
 from . import _kernels
+from .trajectories import homography_point
 
 HIDDEN = -1
 """Label of a pixel that shows, at that instant, a surface hidden at the reference instant."""
 
-_JIT = dict(cache=True, nogil=True, error_model="numpy")
 
-
-@njit(**_JIT)
-def _map(H, s, t, x, y):
-    """``H[s, t] @ (x, y, 1)`` normalised, and whether it is in front of the camera."""
-    w = H[s, t, 2, 0] * x + H[s, t, 2, 1] * y + H[s, t, 2, 2]
-    if not w > 1e-12:
-        return 0.0, 0.0, False
-    px = (H[s, t, 0, 0] * x + H[s, t, 0, 1] * y + H[s, t, 0, 2]) / w
-    py = (H[s, t, 1, 0] * x + H[s, t, 1, 1] * y + H[s, t, 1, 2]) / w
-    return px, py, np.isfinite(px) and np.isfinite(py)
-
-
-@njit(**_JIT)
+@njit(**_kernels._JIT)
 def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
     """Visible segment of every pixel at instants ``first .. last - 1``, into ``out``."""
     height, width = labels.shape
@@ -60,9 +48,7 @@ def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
         for y in range(height):
             for x in range(width):
                 s = labels[y, x]
-                qx, qy, ok = _map(t_from_ref, s, t, float(x), float(y))
-                if not ok:
-                    continue
+                qx, qy = homography_point(t_from_ref, s, t, float(x), float(y))
                 ix = np.int64(np.floor(qx + 0.5))
                 iy = np.int64(np.floor(qy + 0.5))
                 if 0 <= ix < width and 0 <= iy < height:
@@ -87,9 +73,7 @@ def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
                         c = splat[ny, nx]
                     if c < 0 or c == best:
                         continue
-                    px, py, ok = _map(ref_from_t, c, t, float(x), float(y))
-                    if not ok:
-                        continue
+                    px, py = homography_point(ref_from_t, c, t, float(x), float(y))
                     ix = np.int64(np.floor(px + 0.5))
                     iy = np.int64(np.floor(py + 0.5))
                     if ix < 0 or iy < 0 or ix >= width or iy >= height:
