@@ -106,19 +106,25 @@ def test_adaptive_takes_the_blur_near_motion_boundaries_from_the_dense_flow(scen
     assert not np.array_equal(merged, homographies)
 
 
+def _spy(monkeypatch, function: str, keyword: str) -> list:
+    """Record the ``keyword`` argument of every call of ``pipeline.<function>``."""
+    from stereodeblur import pipeline
+
+    seen = []
+    original = getattr(pipeline, function)
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get(keyword))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, function, spy)
+    return seen
+
+
 def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
     import dataclasses
 
-    from stereodeblur import pipeline
-
-    anchors = []
-    solver = pipeline.deblur_irls
-
-    def spy(*args, anchor=None, **kwargs):
-        anchors.append(anchor)
-        return solver(*args, anchor=anchor, **kwargs)
-
-    monkeypatch.setattr(pipeline, "deblur_irls", spy)
+    anchors = _spy(monkeypatch, "deblur_irls", "anchor")
     settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     hybrid = deblur_frame(scene, 1, settings=settings, motion=motion)
@@ -131,16 +137,7 @@ def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
 
 
 def test_the_operator_is_occlusion_aware_only_without_dense_flow_rows(scene, monkeypatch):
-    from stereodeblur import pipeline
-
-    visibilities = []
-    build = pipeline.build_operator
-
-    def spy(*args, visible=None, **kwargs):
-        visibilities.append(visible)
-        return build(*args, visible=visible, **kwargs)
-
-    monkeypatch.setattr(pipeline, "build_operator", spy)
+    visibilities = _spy(monkeypatch, "build_operator", "visible")
     estimated = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
     deblur_frame(scene, 1, settings=estimated)  # with the dense flow's rows
     true = DeblurSettings(**FAST)  # true motion: no dense flow

@@ -395,11 +395,7 @@ def visibility(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings
     with the estimated scene flow, whose boundaries lie somewhere in the blurred edges,
     the dense flow's rows there are better (same result with or without it on top).
     """
-    if (
-        settings.boundary_weights != "adaptive"
-        or settings.kernels != "homography"
-        or flow_rows is not None
-    ):
+    if not uses_boundary_flow(settings) or flow_rows is not None:
         return None
     from .blur.visibility import sceneflow_visibility
 
