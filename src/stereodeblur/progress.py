@@ -38,3 +38,10 @@ def report(progress: ProgressCallback | None, stage: str, done: int = 0, total: 
     """Send ``Progress(stage, done, total)`` to ``progress`` if there is one."""
     if progress is not None:
         progress(Progress(stage, done, total))
+
+
+def prefixed(progress: ProgressCallback | None, prefix: str) -> ProgressCallback | None:
+    """``progress`` with ``prefix`` put before every stage (e.g. ``"frame 3 left: "``)."""
+    if progress is None:
+        return None
+    return lambda p: progress(Progress(prefix + p.stage, p.done, p.total))
