@@ -1,0 +1,183 @@
+"""Every tuning constant of the scene-flow estimator, in one frozen value.
+
+Each field states where its default comes from. "Measured" points to the run that
+chose or checked it (tables in ``benchmarks/results/`` and the README); "not tuned"
+says the value was set once when the code was written (commit 4b95b69, the first
+estimator, unless another is named) and only ever checked as part of the whole
+(``stereodeblur bench sceneflow``: every planar and object scene within its targets,
+``benchmarks/results/bench_sceneflow_640x480.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from ..errors import InputError
+
+__all__ = ["SceneFlowSettings"]
+
+# Fields whose value must be a whole number >= 1 (or, for num_segments, None).
+_COUNTS = (
+    "num_segments",
+    "grid_from_pixels",
+    "plane_hypotheses",
+    "dominant_hypotheses",
+    "dominant_samples",
+    "global_hypotheses",
+    "global_samples",
+    "max_global",
+    "max_neighbours",
+    "max_regions",
+    "num_sweeps",
+    "refine_iterations",
+)
+# Fields that are shares in [0, 1].
+_SHARES = (
+    "min_global_fraction",
+    "min_region_fraction",
+    "edge_floor",
+    "blur_change_share",
+    "match_cost",
+    "min_matched",
+)
+# Fields that must be > 0 (the rest of the floats only >= 0).
+_POSITIVE = (
+    "census_threshold",
+    "max_gain",
+    "min_disparity",
+    "fallback_disparity",
+    "plane_threshold",
+    "global_disparity_threshold",
+    "global_motion_threshold",
+    "edge_contrast",
+    "refine_scale",
+)
+
+
+@dataclass(frozen=True)
+class SceneFlowSettings:
+    """Tuning constants of :func:`stereodeblur.sceneflow.estimate_scene_flow`.
+
+    Defaults reproduce the estimator as benchmarked in ``benchmarks/README.md``;
+    the reason for each is a comment next to it in the source. Every field is
+    checked on construction (:class:`~stereodeblur.errors.InputError` naming it).
+    """
+
+    # --- census descriptors (sceneflow.census)
+    # Not tuned (4b95b69; relative to the brightness since 4b2311f): "similar" band at a
+    # quarter of full scale; checked only as part of the whole (bench sceneflow tables).
+    census_threshold: float = 0.008
+    # Not tuned (4b2311f): the band is at least 1 x the std of a pixel difference's noise.
+    census_noise_factor: float = 1.0
+    # Measured (99d51ec): Gaussian of 1.5 px before the census of noisy frames took the
+    # noisy object scenes' mean AEP from 1.09 to 0.64 px (README, scene-flow section).
+    census_denoise: float = 1.5
+    # Not tuned: largest gain that stretches a dark input to the full range (16 = 4 bits).
+    max_gain: float = 16.0
+
+    # --- superpixels (sceneflow.superpixels)
+    # None: about 1200 at 640x480, scaled with the image area (paper, supplement B).
+    num_segments: int | None = None
+    # Not tuned (speed): fits and data costs use a 2-pixel grid from this many pixels on,
+    # the 640x480 time in benchmarks/README.md is with it.
+    grid_from_pixels: int = 200_000
+
+    # --- proposals (sceneflow.proposals)
+    # Not tuned: RANSAC hypotheses per segment's plane fit (the value of fit_planes).
+    plane_hypotheses: int = 24
+    # Not tuned: inlier band (px of disparity) of the plane fits (the value of fit_planes).
+    plane_threshold: float = 1.0
+    # Not tuned: hypotheses / sampled pixels of the dominant (camera) motion.
+    dominant_hypotheses: int = 48
+    dominant_samples: int = 4000
+    # Not tuned: global proposals (sequential RANSAC): at most this many, each explaining at
+    # least min_global_fraction of the pixels, from global_hypotheses hypotheses each.
+    max_global: int = 8
+    min_global_fraction: float = 0.02
+    global_hypotheses: int = 64
+    global_samples: int = 4000
+    # Not tuned: inlier bands of the global proposals (px of disparity and of flow).
+    global_disparity_threshold: float = 1.0
+    global_motion_threshold: float = 1.5
+    # Not tuned: planes stay this many px of disparity in front of the camera on their segment.
+    min_disparity: float = 0.05
+    # Not tuned: disparity of the fronto-parallel plane used where nothing could be matched.
+    fallback_disparity: float = 1.0
+
+    # --- fusion (sceneflow.fusion)
+    # Not tuned: neighbours (longest shared border first) whose proposals a segment may take.
+    max_neighbours: int = 8
+    # Not tuned: weight and truncation (px) of the smoothness term between segments.
+    smoothness: float = 2.0
+    truncation: float = 4.0
+    # Not tuned: census cost of a sample that leaves the view (the value of data_costs).
+    outside_cost: float = 0.4
+    # Not tuned: smoothness across a contrast edge falls to edge_floor; edge_contrast is the
+    # mean grey difference (of [0, 1]) of two segments that counts as an edge.
+    edge_floor: float = 0.25
+    edge_contrast: float = 0.1
+    # Not tuned: alpha-expansion sweeps over all labels.
+    num_sweeps: int = 4
+    # Not tuned: rounds of refitting regions that chose one proposal and offering them again;
+    # the largest max_regions regions of at least min_region_fraction of the image are
+    # offered to every segment.
+    num_region_rounds: int = 2
+    max_regions: int = 6
+    min_region_fraction: float = 0.02
+
+    # --- continuous refinement (sceneflow.refine)
+    # Not tuned: Gauss-Newton iterations, robust scale of the data term and prior weights
+    # (the values of refine_proposals).
+    refine_iterations: int = 6
+    refine_scale: float = 0.25
+    plane_prior: float = 0.1
+    motion_prior: float = 1.0
+
+    # --- blur balancing (needs the exposure)
+    # Not tuned (905d486): balance the blur where its length changes by > 15 % on at least
+    # half the pixels; with it fast_approach 640x480 goes from 0.8 to 0.33 px AEP (README,
+    # scene-flow section), no other threshold was tried.
+    blur_change: float = 0.15
+    blur_change_share: float = 0.5
+    # Not tuned: prior weights of the second refinement, led by the balanced images alone.
+    balanced_prior: float = 0.0
+
+    # --- occlusion (sceneflow.occlusion)
+    # Not tuned: disparity margin (px) of the z-buffer tests.
+    depth_margin: float = 0.5
+    # Not tuned: flow jump (px) across a segment border that starts a motion-boundary band.
+    boundary_jump: float = 0.5
+
+    # --- diagnostics (warnings only, no effect on the result)
+    # Not tuned: census cost of a good match, and the matched share below which to warn.
+    match_cost: float = 0.3
+    min_matched: float = 0.1
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in _COUNTS:
+                if value is None and f.name == "num_segments":
+                    continue
+                if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                    raise InputError(
+                        f"SceneFlowSettings.{f.name} must be a whole number >= 1, got {value!r}"
+                    )
+                continue
+            if f.name == "num_region_rounds":
+                if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                    raise InputError(
+                        f"SceneFlowSettings.{f.name} must be a whole number >= 0, got {value!r}"
+                    )
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise InputError(f"SceneFlowSettings.{f.name} must be a number, got {value!r}")
+            value = float(value)
+            if not (value == value and abs(value) != float("inf")):
+                raise InputError(f"SceneFlowSettings.{f.name} must be finite, got {value!r}")
+            if f.name in _SHARES and not 0.0 <= value <= 1.0:
+                raise InputError(f"SceneFlowSettings.{f.name} must lie in [0, 1], got {value!r}")
+            if f.name in _POSITIVE and value <= 0:
+                raise InputError(f"SceneFlowSettings.{f.name} must be > 0, got {value!r}")
+            if value < 0:
+                raise InputError(f"SceneFlowSettings.{f.name} must be >= 0, got {value!r}")
