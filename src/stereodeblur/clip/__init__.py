@@ -50,9 +50,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .geometry.camera import VIEWS
-from .io.sources import SourceSpec
+from ..errors import InputError
+from ..geometry.camera import VIEWS
+from ..io.sources import SourceSpec
 
 LOG_NAME = "run-log.jsonl"
 MAX_POOL_RESTARTS = 2
@@ -156,7 +156,7 @@ class TimeReversed:
         return self.scene.read_gt_sharp(view, self._j(index), linear=linear)
 
     def read_gt_flow(self, view, index):
-        from .pipeline import invert_flow
+        from ..pipeline import invert_flow
 
         flow = self.scene.read_gt_flow(view, self._j(index) - 1)
         unknown = ~np.all(np.isfinite(flow), axis=2)
@@ -172,7 +172,7 @@ class TimeReversed:
 
 def gt_needs(num_frames: int, index: int) -> list[tuple[str, int]]:
     """Ground-truth files (kind, frame) of the left view that frame ``index`` needs."""
-    from .pipeline import neighbour_of
+    from ..pipeline import neighbour_of
 
     neighbour = neighbour_of(index, num_frames)
     return [("disparity", index), ("disparity", neighbour), ("flow", min(index, neighbour))]
@@ -180,7 +180,7 @@ def gt_needs(num_frames: int, index: int) -> list[tuple[str, int]]:
 
 def deblur_clip_frame(source, index: int, view: str, settings):
     """Deblur frame ``index`` of ``view`` (the last frame too, with ground-truth motion)."""
-    from .pipeline import deblur_frame
+    from ..pipeline import deblur_frame
 
     last = index == source.num_frames - 1
     if settings.motion_source == "gt" and last:
@@ -192,8 +192,8 @@ def deblur_clip_frame(source, index: int, view: str, settings):
 
 def frame_outputs(job: ClipJob, index: int, view: str) -> list[Path]:
     """The files a finished task has written; the frame PNG comes last."""
-    from .io.scene import scene_path
-    from .pointcloud import point_cloud_path
+    from ..io.scene import scene_path
+    from ..pointcloud import point_cloud_path
 
     paths = [scene_path(job.output, "frame", view, index)]
     if job.point_cloud:
@@ -212,7 +212,7 @@ def _open(job: ClipJob):
     """Source and writer of ``job``, opened once per process."""
     key = (job.source, job.output, job.run_id)
     if key not in _OPEN:
-        from .io.scene import SceneWriter
+        from ..io.scene import SceneWriter
 
         source = job.source.open()
         writer = SceneWriter(job.output, source.info, overwrite=True)
@@ -261,7 +261,7 @@ def process_frame(
             result = deblur_clip_frame(source, index, view, job.settings)
             t0 = time.perf_counter()
             if job.point_cloud:
-                from .pointcloud import frame_point_cloud, point_cloud_path, write_ply
+                from ..pointcloud import frame_point_cloud, point_cloud_path, write_ply
 
                 cloud = frame_point_cloud(
                     result.motion.sceneflow,
@@ -623,8 +623,8 @@ def deblur_clip(
     command : list of str, optional
         The command line, for the log.
     """
-    from .io.scene import SceneWriter
-    from .pipeline import DeblurSettings
+    from ..io.scene import SceneWriter
+    from ..pipeline import DeblurSettings
 
     settings = settings or DeblurSettings()
     if not isinstance(source, SourceSpec):
