@@ -97,7 +97,7 @@ def test_videos_of_different_lengths_use_the_common_frames(pair, tmp_path):
     "case, fragment",
     [
         ("no calibration", "--calib"),
-        ("not a video", "cannot open video"),
+        ("not a video", "not a readable video"),
         ("different sizes", "one size"),
         ("different frame rates", "frames per second"),
         ("same file twice", "same file"),

@@ -14,6 +14,8 @@ from .formats import (
     write_pfm,
     write_png,
 )
+from .protocol import StereoScene
+from .readable import check_readable
 from .scene import (
     CameraInfo,
     Scene,
@@ -29,6 +31,8 @@ __all__ = [
     "PngInfo",
     "Scene",
     "SceneWriter",
+    "StereoScene",
+    "check_readable",
     "linear_to_srgb",
     "open_scene",
     "read_camera",

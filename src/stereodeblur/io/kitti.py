@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from .calibration import stereo_from_projections
 from .formats import read_png, read_png_header
-from .sources import FrameSource, camera_info
+from .frame_source import FrameSource, camera_info
 
 KITTI_FRAME_RATE = 10.0
 _BENCHMARK_NAME = re.compile(r"^(\d{6})_(\d{2})\.png$")

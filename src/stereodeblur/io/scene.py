@@ -233,10 +233,20 @@ def _list_frames(folder: Path) -> list[int]:
 class Scene:
     """A stereo video scene on disk, validated on opening (see :func:`open_scene`).
 
+    Satisfies :class:`~stereodeblur.io.protocol.StereoScene`.
+
     Attributes
     ----------
     root : Path
         Scene folder.
+    name : str
+        The folder's name.
+    kind : str
+        ``'scene'``.
+    paths : tuple of Path
+        ``(root,)``: the whole folder is input.
+    warnings : tuple of str
+        Always empty (a scene folder is either valid or refused).
     info : CameraInfo
         Contents of ``camera.json``.
     num_frames : int
@@ -254,6 +264,9 @@ class Scene:
         if not root.is_dir():
             raise FileNotFoundError(f"scene folder not found: {root}")
         self.root = root
+        self.name = root.name
+        self.paths = (root,)
+        self.warnings: tuple[str, ...] = ()
         self.info = read_camera(root / "camera.json")
         numbers = {}
         for view in VIEWS:
@@ -295,16 +308,27 @@ class Scene:
         self.channels = first.channels
         self.bit_depth = first.bit_depth
 
+    kind = "scene"
+
     def __repr__(self) -> str:
         return (
             f"Scene({str(self.root)!r}, num_frames={self.num_frames}, shape={self.shape}, "
             f"channels={self.channels}, bit_depth={self.bit_depth}, color={self.info.color!r})"
         )
 
+    def describe(self) -> str:
+        """One line: kind, name, frames and size."""
+        h, w = self.shape
+        return f"{self.kind} {self.name}: {self.num_frames} frames of {w}x{h}"
+
     # paths
     def frame_path(self, view: str, index: int) -> Path:
         """Path of frame ``index`` of ``view``."""
         return scene_path(self.root, "frame", view, index)
+
+    def frame_label(self, view: str, index: int) -> str:
+        """The file of frame ``index`` of ``view``, for messages."""
+        return str(self.frame_path(view, index))
 
     def gt_path(self, kind: str, view: str, index: int) -> Path:
         """Path of the ground truth ``kind`` ('sharp', 'disparity', 'flow', 'mixed')."""

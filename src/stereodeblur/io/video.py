@@ -13,7 +13,9 @@ FFV1 (``.mkv``, ``.avi``), PNG (fourcc ``'png '``) and HuffYUV (``'HFYU'``).
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 from collections import OrderedDict
 from pathlib import Path
 
@@ -22,16 +24,98 @@ import numpy as np
 
 from ..errors import InputError
 from .calibration import check_image_size, read_stereo_calibration
-from .sources import FrameSource, camera_info
+from .frame_source import FrameSource, camera_info
 
 CACHE_FRAMES = 4  # decoded frames kept per view
 
 
+# File signatures of still-image formats FFmpeg would open as a one-frame "video".
+_IMAGE_SIGNATURES = {
+    b"\x89PNG\r\n\x1a\n": "PNG",
+    b"\xff\xd8\xff": "JPEG",
+    b"BM": "BMP",
+    b"II*\x00": "TIFF",
+    b"MM\x00*": "TIFF",
+    b"GIF87a": "GIF",
+    b"GIF89a": "GIF",
+    b"P5": "PGM",
+    b"P6": "PPM",
+    b"PF": "PFM",
+    b"Pf": "PFM",
+}
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Keep OpenCV's and FFmpeg's log lines off the terminal (fd 2) while opening a video.
+
+    The caller reports problems itself, in one line.
+    """
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        saved = os.dup(2)
+    except OSError:  # no fd 2 (detached process): nothing to silence
+        saved = None
+    try:
+        if saved is not None:
+            with open(os.devnull, "wb") as null:
+                os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        if saved is not None:
+            os.dup2(saved, 2)
+            os.close(saved)
+        cv2.utils.logging.setLogLevel(level)
+
+
+def _check_not_image(path: Path) -> None:
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(16)
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+        kind = "WebP"
+    else:
+        kind = next((k for sig, k in _IMAGE_SIGNATURES.items() if head.startswith(sig)), None)
+    if kind is not None:
+        raise InputError(f"{path} is a still image ({kind}), not a video: expected a video file")
+
+
 def _capture(path: Path) -> cv2.VideoCapture:
-    capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    _check_not_image(path)
+    with _quiet():
+        capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
     if not capture.isOpened():
-        raise InputError(f"cannot open video {path} (unknown container or codec, or not a video)")
+        raise InputError(
+            f"{path} is not a readable video (unknown container or codec, or not a video)"
+        )
     return capture
+
+
+def _count_frames(capture: cv2.VideoCapture, first_read: bool) -> int:
+    """Frames in the container's index, else counted by decoding to the end."""
+    count = capture.get(cv2.CAP_PROP_FRAME_COUNT)
+    if math.isfinite(count) and count > 0:
+        return int(count)
+    count = int(first_read)
+    with _quiet():
+        while capture.grab():
+            count += 1
+    return count
+
+
+def video_frame_count(path) -> int:
+    """Number of frames of the video at ``path`` (opening it, decoding only if needed)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"video file not found: {path}")
+    capture = _capture(path)
+    try:
+        return _count_frames(capture, False)
+    finally:
+        capture.release()
 
 
 def _to_float(frame: np.ndarray, path: Path) -> np.ndarray:
@@ -90,16 +174,17 @@ class VideoSource(FrameSource):
         if capture is None:
             capture = self._captures[view] = _capture(path)
             self._next[view] = 0
-        if self._next[view] != index:
-            capture.set(cv2.CAP_PROP_POS_FRAMES, index)
-            if int(round(capture.get(cv2.CAP_PROP_POS_FRAMES))) != index:
-                # Inexact seek: decode from the start instead.
-                capture.release()
-                capture = self._captures[view] = _capture(path)
-                for _ in range(index):
-                    if not capture.grab():
-                        break
-        ok, frame = capture.read()
+        with _quiet():
+            if self._next[view] != index:
+                capture.set(cv2.CAP_PROP_POS_FRAMES, index)
+                if int(round(capture.get(cv2.CAP_PROP_POS_FRAMES))) != index:
+                    # Inexact seek: decode from the start instead.
+                    capture.release()
+                    capture = self._captures[view] = _capture(path)
+                    for _ in range(index):
+                        if not capture.grab():
+                            break
+            ok, frame = capture.read()
         if not ok or frame is None:
             self._next[view] = -1
             raise InputError(
@@ -127,17 +212,16 @@ def _probe(path: Path) -> dict:
         raise FileNotFoundError(f"video file not found: {path}")
     capture = _capture(path)
     try:
-        ok, frame = capture.read()
+        with _quiet():
+            ok, frame = capture.read()
         if not ok or frame is None:
-            raise InputError(f"cannot decode the first frame of {path}")
-        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
-        if count <= 0:  # not in the container: count by decoding, one frame at a time
-            count = 1
-            while capture.grab():
-                count += 1
+            raise InputError(f"{path} is not a readable video: cannot decode its first frame")
+        count = _count_frames(capture, True)
         fps = capture.get(cv2.CAP_PROP_FPS)
     finally:
         capture.release()
+    if count < 2:
+        raise InputError(f"{path} has {count} frame: a video needs at least 2 frames")
     return {
         "size": (frame.shape[1], frame.shape[0]),
         "count": count,

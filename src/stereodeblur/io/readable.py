@@ -1,0 +1,127 @@
+"""Check up front that every frame a run will read can be read.
+
+:func:`check_readable` is called before the first frame is processed, so a bad
+file stops a run before any work is done (and before anything is written), with
+a one-line :class:`~stereodeblur.errors.InputError` naming the first bad file and
+what was expected. Nothing is decoded: a PNG's signature, IHDR and chunk layout
+are read; a video is opened and its frame count compared with the frames needed.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..errors import InputError
+from ..geometry.camera import VIEWS
+from .formats import PNG_SIGNATURE, read_png_header
+from .kitti import KittiSource
+from .protocol import StereoScene
+from .scene import Scene
+from .video import VideoSource, video_frame_count
+
+_CHUNK_HEADER = struct.Struct(">I4s")
+# The PNG specification's limit on a chunk's data length.
+_MAX_CHUNK = 2**31 - 1
+
+
+def check_png_layout(path: Path) -> None:
+    """Walk the chunks of a PNG (lengths only, no decoding): IDAT present, IEND reached.
+
+    Raises :class:`InputError` naming ``path`` when the file is truncated or its
+    chunks do not add up.
+    """
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as handle:
+            if handle.read(8) != PNG_SIGNATURE:
+                raise InputError(f"not a PNG file: {path}")
+            position, seen_data = 8, False
+            while True:
+                head = handle.read(8)
+                if len(head) < 8:
+                    what = "no image data (IDAT)" if not seen_data else "no end chunk (IEND)"
+                    raise InputError(f"truncated PNG file {path}: {what} in its {size} bytes")
+                length, kind = _CHUNK_HEADER.unpack(head)
+                end = position + 12 + length
+                if length > _MAX_CHUNK or end > size:
+                    raise InputError(
+                        f"truncated PNG file {path}: chunk {kind!r} at byte {position} needs "
+                        f"{12 + length} bytes, the file has {size - position} left"
+                    )
+                if kind == b"IDAT":
+                    seen_data = True
+                elif kind == b"IEND":
+                    if not seen_data:
+                        raise InputError(f"corrupt PNG file {path}: no image data (IDAT)")
+                    return
+                handle.seek(end)
+                position = end
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def _png_frames(scene: StereoScene, files: Iterable[Path]) -> None:
+    """Every PNG in ``files`` has the scene's size and channels and is complete."""
+    height, width = scene.shape
+    for path in files:
+        header = read_png_header(path)
+        if (header.height, header.width, header.channels) != (height, width, scene.channels):
+            kind = "grey" if header.channels == 1 else "RGB"
+            expected = "grey" if scene.channels == 1 else "RGB"
+            raise InputError(
+                f"{path} is {header.width}x{header.height} {kind}, expected {width}x{height} "
+                f"{expected} like the other frames of {scene.name}"
+            )
+        check_png_layout(path)
+
+
+def _video_frames(scene: VideoSource, views, last: int) -> None:
+    for view in views:
+        path = scene.files[view]
+        count = video_frame_count(path)
+        if count <= last:
+            raise InputError(
+                f"{path} has {count} frames now, expected at least {last + 1} "
+                f"(it had {scene.num_frames} when opened)"
+            )
+
+
+def check_readable(
+    scene: StereoScene, views: Iterable[str] = VIEWS, indices: Iterable[int] | None = None
+) -> None:
+    """Check that frames ``indices`` of ``views`` can be read, without decoding them.
+
+    Parameters
+    ----------
+    scene : StereoScene
+        A :class:`~stereodeblur.io.scene.Scene`, KITTI source or video pair.
+    views : iterable of str
+        ``'left'`` and/or ``'right'``.
+    indices : iterable of int, optional
+        Frame numbers; all frames when omitted.
+
+    Raises
+    ------
+    InputError
+        Naming the first file that cannot be read and what was expected.
+    FileNotFoundError
+        When a frame file has disappeared since the scene was opened.
+    """
+    views = tuple(views)
+    for view in views:
+        if view not in VIEWS:
+            raise InputError(f"view must be 'left' or 'right', got {view!r}")
+    indices = sorted(set(range(scene.num_frames) if indices is None else indices))
+    for index in indices:
+        if isinstance(index, bool) or not 0 <= index < scene.num_frames:
+            raise InputError(f"frame index {index!r} is out of range 0..{scene.num_frames - 1}")
+    if not indices:
+        return
+    if isinstance(scene, Scene | KittiSource):
+        _png_frames(scene, (scene.frame_path(v, i) for i in indices for v in views))
+    elif isinstance(scene, VideoSource):
+        _video_frames(scene, views, indices[-1])
+    else:
+        raise TypeError(f"check_readable: unsupported source {type(scene).__name__}")
