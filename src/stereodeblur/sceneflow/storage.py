@@ -103,16 +103,22 @@ def load_sceneflow(path: str | os.PathLike) -> SceneFlow:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"scene flow file not found: {path}")
+    expected = f"expected a {FORMAT} .npz archive"
     try:
+        with open(path, "rb") as handle:
+            if handle.read(4) != b"PK\x03\x04":  # every .npz is a zip archive
+                raise InputError(f"not a scene flow file: {path} ({expected})")
         with np.load(path, allow_pickle=False) as data:
             missing = [k for k in _KEYS if k not in data.files]
             if missing:
                 raise InputError(f"not a scene flow file: {path} (missing {', '.join(missing)})")
             arrays = {k: data[k] for k in _KEYS}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, MemoryError) as err:
         if isinstance(err, InputError):
             raise
-        raise InputError(f"not a scene flow file: {path} ({err})") from None
+        # numpy's own text may suggest loading pickled objects unsafely: never shown.
+        reason = "holds Python objects" if "pickle" in str(err) else type(err).__name__
+        raise InputError(f"not a scene flow file: {path} ({reason}; {expected})") from None
     fmt = str(arrays["format"])
     if fmt != FORMAT:
         raise InputError(f"unsupported scene flow format {fmt!r} in {path}, expected {FORMAT!r}")
