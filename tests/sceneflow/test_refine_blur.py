@@ -3,9 +3,9 @@ from scipy import ndimage
 
 from stereodeblur.geometry import se3_exp
 from stereodeblur.geometry.plane import disparity_coefficients
+from stereodeblur.sceneflow.blur_balance import blur_length_change, cross_blur
 from stereodeblur.sceneflow.fusion import ProposalSet
 from stereodeblur.sceneflow.proposals import predict
-from stereodeblur.sceneflow.refine import blur_length_change, cross_blur
 
 from .scenes import CAMERA, SIZE, frames, render_views
 

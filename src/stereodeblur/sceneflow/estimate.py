@@ -56,6 +56,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError
 from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
+from .blur_balance import blur_length_change, cross_blur
 from .census import census_cost, census_descriptors
 from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
 from .initial import initial_disparity, initial_optical_flow, to_gray, to_gray_u8
@@ -69,7 +70,7 @@ from .proposals import (
     global_proposals,
     predict,
 )
-from .refine import blur_length_change, cross_blur, refine_proposals
+from .refine import refine_proposals
 from .superpixels import SegmentGraph, default_num_segments, segment_graph, slic_segments
 
 MIN_DISPARITY = 0.05  # px: planes are kept in front of the camera over their segment

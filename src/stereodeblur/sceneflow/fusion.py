@@ -45,7 +45,7 @@ import numpy as np
 
 from ..geometry.camera import StereoCamera
 from .census import census_cost_at, wrong_match_cost
-from .proposals import predict
+from .prediction import predict
 from .superpixels import SegmentGraph
 
 
