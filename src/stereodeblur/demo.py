@@ -1,13 +1,29 @@
-"""``stereodeblur demo``: render a small blurred stereo scene, deblur it, show the result."""
+"""The demo: render a small blurred stereo scene, deblur one frame, compare with the truth."""
 
 from __future__ import annotations
 
+import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .progress import ProgressCallback, report
+
 DEMO_SCENE = "yaw"
 DEMO_FRAME = 1
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """What :func:`run_demo` did: the scene, the settings, the PSNRs and the picture written."""
+
+    scene: str
+    size: tuple[int, int]
+    settings: object
+    psnr_blurred: float
+    psnr_deblurred: float
+    picture: Path
 
 
 def side_by_side(images: list[np.ndarray], *, gap: int = 4) -> np.ndarray:
@@ -20,39 +36,54 @@ def side_by_side(images: list[np.ndarray], *, gap: int = 4) -> np.ndarray:
     return out
 
 
-def run_demo(output: Path, *, size=(320, 240), progress=None) -> int:
-    """Render, deblur and compare; writes ``output/demo.png`` and prints the PSNRs."""
-    from .cli import _default_motion_source
+def run_demo(
+    output: str | os.PathLike,
+    *,
+    size: tuple[int, int] = (320, 240),
+    settings=None,
+    progress: ProgressCallback | None = None,
+) -> DemoResult:
+    """Render the demo scene, deblur frame 1 of its left view, write the comparison picture.
+
+    Parameters
+    ----------
+    output : path
+        Folder for ``scene/`` (the rendered scene), ``deblurred/`` and ``demo.png``
+        (blurred | deblurred | sharp, sRGB).
+    size : (width, height)
+    settings : DeblurSettings, optional
+        Default: ``DeblurSettings()``.
+    progress : callable, optional
+        Receives :class:`~stereodeblur.progress.Progress` reports.
+    """
     from .evaluation.metrics import psnr
     from .io.formats import linear_to_srgb, write_png
     from .io.scene import SceneWriter, open_scene
     from .pipeline import DeblurSettings, deblur_frame
     from .synth.planar import make_planar_scene, write_rendered_scene
 
-    say = progress or (lambda message: None)
-    say(f"rendering the '{DEMO_SCENE}' planar scene at {size[0]}x{size[1]}")
+    output = Path(output)
+    settings = DeblurSettings() if settings is None else settings
+    report(progress, f"rendering the '{DEMO_SCENE}' planar scene at {size[0]}x{size[1]}")
     rendered = make_planar_scene(DEMO_SCENE, size=size, num_frames=3)
     scene_dir = output / "scene"
     write_rendered_scene(rendered, scene_dir, overwrite=True)
     scene = open_scene(scene_dir)
-    settings = DeblurSettings(motion_source=_default_motion_source())
-    result = deblur_frame(scene, DEMO_FRAME, settings=settings, progress=say)
+    result = deblur_frame(scene, DEMO_FRAME, settings=settings, progress=progress)
     SceneWriter(output / "deblurred", scene.info, overwrite=True).write_frame(
         "left", DEMO_FRAME, result.image
     )
     sharp = scene.read_gt_sharp("left", DEMO_FRAME)
     border = max(4, round(0.025 * size[0]))
-    before = psnr(result.blurred, sharp, border=border)
-    after = psnr(result.image, sharp, border=border)
     picture = output / "demo.png"
     # The scene holds linear values; the picture is sRGB-encoded for viewing.
     panel = side_by_side([result.blurred, result.image, sharp])
     write_png(picture, linear_to_srgb(panel), bit_depth=8)
-    print(
-        f"scene: {DEMO_SCENE}, {size[0]}x{size[1]}, motion from {settings.motion_source}, "
-        f"{settings.kernels} kernels"
+    return DemoResult(
+        scene=DEMO_SCENE,
+        size=tuple(size),
+        settings=settings,
+        psnr_blurred=psnr(result.blurred, sharp, border=border),
+        psnr_deblurred=psnr(result.image, sharp, border=border),
+        picture=picture,
     )
-    print(f"PSNR blurred   {before:6.2f} dB")
-    print(f"PSNR deblurred {after:6.2f} dB  ({after - before:+.2f} dB)")
-    print(f"picture (blurred | deblurred | sharp): {picture}")
-    return 0

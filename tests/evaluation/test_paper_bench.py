@@ -5,18 +5,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stereodeblur.cli import build_parser, main
+from stereodeblur.cli import main
 from stereodeblur.evaluation import paper_bench
-from stereodeblur.evaluation.paper_bench import (
+from stereodeblur.evaluation.paper_bench import weight_statistics
+from stereodeblur.evaluation.paper_columns import (
     ALPHA_SWEEP,
     COLUMNS,
     MASKED_COLUMNS,
     TRUE_MOTION,
     sweep_column,
-    weight_statistics,
 )
 from stereodeblur.io.formats import read_png
-from stereodeblur.pipeline import DeblurSettings
 
 TINY = [
     "bench",
@@ -68,14 +67,6 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     monkeypatch.setattr(paper_bench, "run_column", None)
     assert main([*TINY, "--work", str(work)]) == 0
     assert "Table 3" in capsys.readouterr().out
-
-
-@pytest.mark.parametrize("column", COLUMNS + MASKED_COLUMNS + (TRUE_MOTION,), ids=lambda c: c.key)
-def test_every_column_is_a_combination_of_the_cli_switches(column):
-    args = build_parser().parse_args(["deblur", "scene", "-o", "out", *column.flags().split()])
-    from stereodeblur.cli import _settings
-
-    assert _settings(args) == column.settings(DeblurSettings(motion_source="gt"))
 
 
 def test_weight_statistics_count_low_weights_near_boundaries_and_flow_errors():

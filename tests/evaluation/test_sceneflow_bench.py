@@ -73,14 +73,10 @@ def test_motorcycle_static_clip():
 
 def test_cli_entry_writes_tables(tmp_path, capsys):
     pytest.importorskip("stereodeblur.synth.planar")
-    from types import SimpleNamespace
+    from stereodeblur.cli import main
 
-    from stereodeblur.evaluation.sceneflow_bench import main
-
-    args = SimpleNamespace(
-        sizes="96x72", scenes="upward", work=str(tmp_path), quiet=True, no_motorcycle=True
-    )
-    assert main(args) == 0
+    args = ["bench", "sceneflow", "--sizes", "96x72", "--scenes", "upward", "--no-motorcycle"]
+    assert main([*args, "--work", str(tmp_path), "-q"]) == 0
     out = capsys.readouterr().out
     assert "| upward | 96x72 |" in out
     assert (tmp_path / "sceneflow.md").read_text() == out.rstrip("\n") + "\n"

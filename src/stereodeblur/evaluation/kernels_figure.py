@@ -234,20 +234,3 @@ def write_kernel_figure(path: str | os.PathLike, **options) -> KernelGrid:
     path.parent.mkdir(parents=True, exist_ok=True)
     write_png(path, picture.astype(np.float32) / 255.0, bit_depth=8)
     return kernels
-
-
-def main(args) -> int:
-    """CLI entry: write the picture, print the kernel differences per grid pixel."""
-    from ..cli import parse_size
-
-    size = parse_size(args.size)
-    kernels = write_kernel_figure(args.output, size=size, yaw=args.yaw, depth=args.depth)
-    norms = kernels.difference_norm()
-    print(f"wrote {args.output}: {norms.shape[1]} x {norms.shape[0]} kernels, yaw {args.yaw} rad")
-    print("L1 difference of homography and flow kernels (0 = equal, 2 = disjoint):")
-    for line, pixels in zip(norms, kernels.pixels, strict=True):
-        print(
-            "  "
-            + "  ".join(f"({x:3d},{y:3d}) {v:.3f}" for (x, y), v in zip(pixels, line, strict=True))
-        )
-    return 0

@@ -1,25 +1,6 @@
-"""``stereodeblur bench paper``: the layout of the paper's Tables 2, 3 and 4.
+"""``bench paper``: every column of the paper's Tables 2-4 on every scene, resumably.
 
-Frame 1 of the left view of every scene is deblurred by each *column*, a
-combination of the pipeline's switches (:class:`~stereodeblur.pipeline.DeblurSettings`):
-
-============================  ===============  ============  =================  ========
-column                        motion source    kernels       boundary weights   alpha
-============================  ===============  ============  =================  ========
-ground-truth 2D displacement  gt               displacement  none               0.001
-initial optical flow          initial-flow     displacement  none               0.001
-2D projection of scene flow   sceneflow        displacement  none               0.001
-3D homographies               sceneflow        homography    none               0.001
-paper (full)                  sceneflow        homography    paper (Eq. 5)      0.001
-ours (full)                   sceneflow        homography    adaptive           auto
-============================  ===============  ============  =================  ========
-
-Table 2 ("without motion discontinuities") repeats the first four with
-``boundary_mask='gt'``: the scene's gt/mixed pixels get weight 0 throughout.
-Tables 3 (PSNR) and 4 (SSIM) use all six columns without the mask. A seventh run,
-"ours, true motion" (:data:`TRUE_MOTION`: ours full with motion source gt, the same
-piecewise-planar model fitted to the true disparity and flow), is no method but shows how
-far a better motion estimate could take the blur model. AEP is the
+The columns are :mod:`.paper_columns`, the report :mod:`.paper_tables`. AEP is the
 mean endpoint error of the 2D motion a column's kernels come from against
 gt/flow; ADE the mean absolute disparity error of the scene flow against
 gt/disparity. PSNR and SSIM skip a border of 2.5 % of the width (content that
@@ -32,8 +13,6 @@ final weight (ours: trust in the blur model) is below 0.5, the share that lie
 within 3 px of gt/mixed or where the scene flow's endpoint error exceeds 1 px
 ("explained"); and the share of all pixels whose weight changed by more than
 0.05 in the last IRLS iteration.
-The alpha sweep (``--alpha-sweep``) deblurs with "ours (full)" at every alpha of
-:data:`ALPHA_SWEEP` and compares with ``alpha='auto'``.
 
 Everything is cached under the work folder, so an interrupted run resumes:
 ``WORK/SIZE/scenes/NAME`` (rendered scenes), ``WORK/SIZE/cache/NAME/`` (scene
@@ -46,19 +25,31 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..progress import ProgressCallback, report
+from .paper_columns import (
+    ALPHA_SWEEP,
+    COLUMNS,
+    FRAME,
+    MASKED_COLUMNS,
+    TRUE_MOTION,
+    Column,
+    ColumnResult,
+    SceneResult,
+    sweep_column,
+)
+from .paper_tables import markdown_report
 
-FRAME = 1
-PAPER_ALPHA = 1e-3
-ALPHA_SWEEP = (3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 PLANAR_SCENES = ("upward", "forward", "forward_yaw")
 NOISY_SUFFIX = "_noisy"
 LOW_WEIGHT = 0.5
@@ -67,115 +58,6 @@ FLOW_ERROR_PX = 1.0
 CHANGE = 0.05
 RENDER_SAMPLES = 48
 DIFFERENCE_GAIN = 4.0
-
-
-@dataclass(frozen=True)
-class Column:
-    """One method of the tables: a combination of the pipeline's switches."""
-
-    key: str
-    title: str
-    motion_source: str
-    kernels: str
-    boundary_weights: str = "none"
-    alpha: float | str = PAPER_ALPHA
-    boundary_mask: str | None = None
-
-    def settings(self, base):
-        """``base`` (a DeblurSettings) with this column's switches."""
-        from dataclasses import replace
-
-        return replace(
-            base,
-            motion_source=self.motion_source,
-            kernels=self.kernels,
-            boundary_weights=self.boundary_weights,
-            alpha=self.alpha,
-            boundary_mask=self.boundary_mask,
-        )
-
-    def flags(self) -> str:
-        """The equivalent ``stereodeblur deblur`` options."""
-        weights = (
-            "--no-boundary-weights"
-            if self.boundary_weights == "none"
-            else f"--boundary-weights {self.boundary_weights}"
-        )
-        mask = f" --boundary-mask {self.boundary_mask}" if self.boundary_mask else ""
-        return (
-            f"--motion-source {self.motion_source} --kernels {self.kernels} {weights} "
-            f"--alpha {self.alpha}{mask}"
-        )
-
-
-COLUMNS = (
-    Column("gt-displacement", "gt 2D displacement", "gt", "displacement"),
-    Column("initial-flow", "initial optical flow", "initial-flow", "displacement"),
-    Column("sceneflow-2d", "2D projection of scene flow", "sceneflow", "displacement"),
-    Column("homographies", "3D homographies", "sceneflow", "homography"),
-    Column("paper-full", "paper (full)", "sceneflow", "homography", "paper"),
-    Column("ours-full", "ours (full)", "sceneflow", "homography", "adaptive", "auto"),
-)
-"""Tables 3 and 4."""
-
-MASKED_COLUMNS = tuple(
-    Column(
-        "masked-" + c.key, c.title, c.motion_source, c.kernels, c.boundary_weights, c.alpha, "gt"
-    )
-    for c in COLUMNS[:4]
-)
-"""Table 2: the 2D and 3D kernels with gt/mixed masked out."""
-
-FULL_KEYS = ("paper-full", "ours-full")
-
-TRUE_MOTION = Column(
-    "ours-true-motion", "ours, true motion", "gt", "homography", "adaptive", "auto"
-)
-"""Ours (full) with the scene flow fitted to the true disparity and flow: how far a better
-motion estimate could take the blur model (not a method; kept out of Tables 3 and 4)."""
-
-
-def sweep_column(alpha: float) -> Column:
-    """ "ours (full)" at a fixed ``alpha``."""
-    return Column(
-        f"sweep-{alpha:g}", f"ours, alpha {alpha:g}", "sceneflow", "homography", "adaptive", alpha
-    )
-
-
-@dataclass(frozen=True)
-class ColumnResult:
-    """One column on one scene.
-
-    ``aep`` / ``ade`` are NaN where the column has no such estimate; the weight
-    statistics are NaN for fixed weights.
-    """
-
-    column: str
-    psnr: float
-    ssim: float
-    aep: float
-    ade: float
-    alpha: float
-    seconds: float
-    low_weight_percent: float = math.nan
-    low_weight_explained_percent: float = math.nan
-    changed_last_percent: float = math.nan
-    signature: dict = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class SceneResult:
-    """All columns on one scene, plus the blurred input's scores."""
-
-    scene: str
-    kind: str  # 'object' or 'planar'
-    noisy: bool
-    size: str
-    psnr_blurred: float
-    ssim_blurred: float
-    columns: dict
-    sceneflow_seconds: float = math.nan
-    warnings: tuple[str, ...] = ()
 
 
 # --- scenes ---------------------------------------------------------------------------------
@@ -205,15 +87,21 @@ def default_scenes() -> list[str]:
     return [n + suffix for n in names for suffix in ("", NOISY_SUFFIX)]
 
 
-def render_missing(base: Path, names, size, *, num_samples: int = RENDER_SAMPLES, progress=None):
+def render_missing(
+    base: Path,
+    names,
+    size,
+    *,
+    num_samples: int = RENDER_SAMPLES,
+    progress: ProgressCallback | None = None,
+) -> None:
     """Render and write the scenes of ``names`` not yet under ``base`` (both variants at once)."""
     from ..synth.objects import NOISE_SIGMA, add_noise, make_object_scene
     from ..synth.planar import make_planar_scene, write_rendered_scene
 
     missing = [n for n in names if not (base / n / "camera.json").is_file()]
     for root in dict.fromkeys(n.removesuffix(NOISY_SUFFIX) for n in missing):
-        if progress is not None:
-            progress(f"rendering {root} at {size[0]}x{size[1]}")
+        report(progress, f"rendering {root} at {size[0]}x{size[1]}")
         if scene_kind(root) == "object":
             scene = make_object_scene(root, size=size, num_samples=num_samples)
         else:
@@ -366,14 +254,18 @@ def _signature(column: Column, settings) -> dict:
 
 
 def evaluate_scene(
-    root: Path, cache: Path, columns, base_settings, *, progress=None
+    root: Path,
+    cache: Path,
+    columns,
+    base_settings,
+    *,
+    progress: ProgressCallback | None = None,
 ) -> SceneResult:
     """All ``columns`` on the scene at ``root``, reusing results cached under ``cache``."""
     from ..io.formats import write_png
     from ..io.scene import open_scene
     from .metrics import psnr, ssim
 
-    say = progress or (lambda message: None)
     scene = open_scene(root)
     name = root.name
     truth = {
@@ -397,7 +289,7 @@ def evaluate_scene(
                 results[column.key] = ColumnResult(**data)
                 continue
         if column.motion_source not in motions:
-            say(f"{name}: motion ({column.motion_source})")
+            report(progress, f"{name}: motion ({column.motion_source})")
             motion, seconds, caught = cached_motion(
                 scene, column.motion_source, base_settings, cache
             )
@@ -405,14 +297,14 @@ def evaluate_scene(
             messages += caught
             if column.motion_source == "sceneflow" and seconds:
                 sceneflow_seconds = seconds
-        say(f"{name}: {column.key}")
+        report(progress, f"{name}: {column.key}")
         motion = motions[column.motion_source]
         result, image = run_column(scene, column, base_settings, motion, truth)
         cache.mkdir(parents=True, exist_ok=True)
         write_png(cache / f"{column.key}.png", np.clip(image, 0, 1), bit_depth=16)
         json_path.write_text(json.dumps(asdict(result), indent=1), encoding="utf-8")
         results[column.key] = result
-        say(f"{name}: {column.key} PSNR {result.psnr:.2f} dB ({result.seconds:.0f} s)")
+        report(progress, f"{name}: {column.key} PSNR {result.psnr:.2f} dB ({result.seconds:.0f} s)")
     timing = cache / "sceneflow_seconds.json"
     if not math.isnan(sceneflow_seconds):
         timing.write_text(json.dumps(sceneflow_seconds), encoding="utf-8")
@@ -465,273 +357,79 @@ def _title_strip(titles, width: int) -> np.ndarray:
     return strip.astype(np.float32) / 255.0
 
 
-# --- tables ---------------------------------------------------------------------------------
+# --- the whole benchmark --------------------------------------------------------------------
 
 
-def _value(row: SceneResult, key: str, metric: str) -> float:
-    entry = row.columns.get(key)
-    return math.nan if entry is None else float(entry[metric])
+@dataclass(frozen=True)
+class PaperBench:
+    """A run of :func:`run_paper_bench`: one row per scene, the Markdown report, its folder."""
+
+    rows: tuple[SceneResult, ...]
+    text: str
+    folder: Path
 
 
-def _fmt(value: float, digits: int = 2) -> str:
-    return "–" if value is None or math.isnan(value) else f"{value:.{digits}f}"
+def bench_columns(*, alpha_sweep: bool = False, masked: bool = True) -> list[Column]:
+    """The columns a run deblurs with: Tables 3-4, the true motion, Table 2, the sweep."""
+    columns = list(COLUMNS) + [TRUE_MOTION]
+    columns += list(MASKED_COLUMNS) if masked else []
+    columns += [sweep_column(a) for a in ALPHA_SWEEP] if alpha_sweep else []
+    return columns
 
 
-def _mean_row(rows, getter) -> float:
-    values = [getter(r) for r in rows]
-    values = [v for v in values if not math.isnan(v)]
-    return float(np.mean(values)) if values else math.nan
+def run_paper_bench(
+    work: str | os.PathLike,
+    *,
+    size: tuple[int, int] = (640, 480),
+    scenes: Sequence[str] | None = None,
+    settings=None,
+    alpha_sweep: bool = False,
+    masked: bool = True,
+    render_samples: int = RENDER_SAMPLES,
+    command: str = "",
+    progress: ProgressCallback | None = None,
+) -> PaperBench:
+    """Render missing scenes, evaluate every column (resumably), write tables and figures.
 
-
-def _groups(rows):
-    for noisy, label in ((False, "noiseless"), (True, "noisy, sigma = 0.01")):
-        for kind in ("planar", "object"):
-            chosen = [r for r in rows if r.noisy == noisy and r.kind == kind]
-            if chosen:
-                yield f"{kind} scenes, {label}", chosen
-
-
-def table_masked(rows) -> str:
-    """Table 2: masked boundaries; PSNR of the 2D and 3D kernels with AEP / ADE."""
-    head = (
-        "| scene | gt 2D displacement PSNR | initial flow AEP | PSNR | 2D proj. scene flow AEP "
-        "| PSNR | 3D homographies ADE | PSNR |\n|---|---:|---:|---:|---:|---:|---:|---:|"
-    )
-    keys = [c.key for c in MASKED_COLUMNS]
-    out = []
-    for label, group in _groups(rows):
-        lines = [f"**{label}**", "", head]
-        for r in group + ["mean"]:
-            rr = group if r == "mean" else [r]
-
-            def m(key, metric, rr=rr):
-                return _mean_row(rr, lambda x: _value(x, key, metric))
-
-            psnrs = [m(k, "psnr") for k in keys]
-            best = np.nanmax(psnrs) if not all(math.isnan(p) for p in psnrs) else math.nan
-            cells = [f"**{_fmt(p)}**" if p == best else _fmt(p) for p in psnrs]
-            name = "mean" if r == "mean" else r.scene
-            lines.append(
-                f"| {name} | {cells[0]} | {_fmt(m(keys[1], 'aep'))} | {cells[1]} | "
-                f"{_fmt(m(keys[2], 'aep'))} | {cells[2]} | {_fmt(m(keys[3], 'ade'))} | {cells[3]} |"
-            )
-        out.append("\n".join(lines))
-    return "\n\n".join(out)
-
-
-def table_metric(rows, metric: str) -> str:
-    """Table 3 (``metric='psnr'``) or Table 4 (``'ssim'``): all columns, no mask."""
-    digits = 2 if metric == "psnr" else 3
-    titles = " | ".join(c.title for c in COLUMNS)
-    head = f"| scene | blurred | {titles} |\n|---|" + "---:|" * (len(COLUMNS) + 1)
-    out = []
-    for label, group in _groups(rows):
-        lines = [f"**{label}**", "", head]
-        for r in group + ["mean"]:
-            rr = group if r == "mean" else [r]
-            values = [_mean_row(rr, lambda x, k=c.key: _value(x, k, metric)) for c in COLUMNS]
-            blurred = _mean_row(rr, lambda x: getattr(x, f"{metric}_blurred"))
-            finite = [v for v in values if not math.isnan(v)]
-            best = max(finite) if finite else math.nan
-            cells = [f"**{_fmt(v, digits)}**" if v == best else _fmt(v, digits) for v in values]
-            name = "mean" if r == "mean" else r.scene
-            lines.append(f"| {name} | {_fmt(blurred, digits)} | " + " | ".join(cells) + " |")
-        out.append("\n".join(lines))
-    return "\n\n".join(out)
-
-
-def table_weights(rows) -> str:
-    """Weight diagnostics of the full methods (module docstring)."""
-    lines = [
-        "| scene | ours: % trust < 0.5 | of those: % near gt/mixed or flow error > 1 px "
-        "| % changed > 0.05 in last iteration | paper: % w < 0.5 | of those explained "
-        "| % changed in last iteration |",
-        "|---|---:|---:|---:|---:|---:|---:|",
-    ]
-    for r in rows:
-        cells = []
-        for key in FULL_KEYS[::-1]:
-            for metric in (
-                "low_weight_percent",
-                "low_weight_explained_percent",
-                "changed_last_percent",
-            ):
-                cells.append(_fmt(_value(r, key, metric), 1))
-        lines.append(f"| {r.scene} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def table_sweep(rows) -> str:
-    """PSNR of ours (full) at each fixed alpha and at auto."""
-    sweep = [sweep_column(a).key for a in ALPHA_SWEEP]
-    head = (
-        "| scene | " + " | ".join(f"{a:g}" for a in ALPHA_SWEEP) + " | auto (alpha) | best - auto |"
-    )
-    lines = [head, "|---|" + "---:|" * (len(ALPHA_SWEEP) + 2)]
-    for r in rows:
-        values = [_value(r, k, "psnr") for k in sweep]
-        auto = _value(r, "ours-full", "psnr")
-        alpha = _value(r, "ours-full", "alpha")
-        finite = [v for v in values if not math.isnan(v)]
-        best = max(finite) if finite else math.nan
-        cells = [f"**{_fmt(v)}**" if v == best else _fmt(v) for v in values]
-        lines.append(
-            f"| {r.scene} | " + " | ".join(cells) + f" | {_fmt(auto)} ({alpha:.2g}) | "
-            f"{_fmt(best - auto)} |"
-        )
-    return "\n".join(lines)
-
-
-def table_true_motion(rows) -> str:
-    """PSNR / SSIM of ours with the estimated and the true motion, and the initial flow."""
-    keys = ("initial-flow", "ours-full", TRUE_MOTION.key)
-    head = (
-        "| scene | initial optical flow | ours (full) | ours, true motion |\n|---|---:|---:|---:|"
-    )
-    out = []
-    for label, group in _groups(rows):
-        lines = [f"**{label}**", "", head]
-        for r in group + ["mean"]:
-            rr = group if r == "mean" else [r]
-            cells = [
-                f"{_fmt(_mean_row(rr, lambda x, k=k: _value(x, k, 'psnr')))} / "
-                f"{_fmt(_mean_row(rr, lambda x, k=k: _value(x, k, 'ssim')), 3)}"
-                for k in keys
-            ]
-            name = "mean" if r == "mean" else r.scene
-            lines.append(f"| {name} | " + " | ".join(cells) + " |")
-        out.append("\n".join(lines))
-    return "\n\n".join(out)
-
-
-def summary(rows, *, sweep: bool) -> list[str]:
-    """The issue's checks, as sentences (object scenes; noiseless and noisy separately)."""
-    out = []
-    for noisy in (False, True):
-        group = [r for r in rows if r.kind == "object" and r.noisy == noisy]
-        if not group:
-            continue
-        label = "noisy" if noisy else "noiseless"
-
-        def diff(a, b, metric="psnr", group=group):
-            return np.array([_value(r, a, metric) - _value(r, b, metric) for r in group])
-
-        d_hom = diff("ours-full", "homographies")
-        d_flow = diff("ours-full", "initial-flow")
-        ssim_means = {
-            c.key: _mean_row(group, lambda x, k=c.key: _value(x, k, "ssim")) for c in COLUMNS
-        }
-        best_ssim = max(
-            ssim_means, key=lambda k: -np.inf if math.isnan(ssim_means[k]) else ssim_means[k]
-        )
-        out.append(
-            f"object scenes, {label}: ours (full) - 3D homographies = {np.nanmean(d_hom):+.2f} dB "
-            f"mean, {np.nanmin(d_hom):+.2f} dB worst scene; ours (full) - initial optical flow "
-            f"= {np.nanmean(d_flow):+.2f} dB mean; best mean SSIM: {best_ssim} "
-            f"({ssim_means[best_ssim]:.3f}; ours {ssim_means['ours-full']:.3f})"
-        )
-        d_true = diff(TRUE_MOTION.key, "initial-flow")
-        if not np.all(np.isnan(d_true)):
-            out.append(
-                f"object scenes, {label}: ours with the true motion - initial optical flow = "
-                f"{np.nanmean(d_true):+.2f} dB mean ({np.nanmin(d_true):+.2f} to "
-                f"{np.nanmax(d_true):+.2f})"
-            )
-        explained = [_value(r, "ours-full", "low_weight_explained_percent") for r in group]
-        changed = [_value(r, "ours-full", "changed_last_percent") for r in group]
-        out.append(
-            f"object scenes, {label}: ours (full) trust < 0.5 explained by gt/mixed or flow "
-            f"error: {np.nanmean(explained):.1f} % mean, {np.nanmin(explained):.1f} % worst; "
-            f"changed > 0.05 in the last iteration: {np.nanmean(changed):.2f} % mean, "
-            f"{np.nanmax(changed):.2f} % worst"
-        )
-    if sweep:
-        for noisy in (False, True):
-            group = [r for r in rows if r.noisy == noisy]
-            if not group:
-                continue
-            gaps = []
-            for r in group:
-                values = [_value(r, sweep_column(a).key, "psnr") for a in ALPHA_SWEEP]
-                gaps.append(np.nanmax(values) - _value(r, "ours-full", "psnr"))
-            out.append(
-                f"alpha sweep, {'noisy' if noisy else 'noiseless'} (all scenes): best fixed alpha "
-                f"- auto = {np.nanmean(gaps):+.2f} dB mean, {np.nanmax(gaps):+.2f} dB worst"
-            )
-    return out
-
-
-def legend(columns) -> str:
-    """Every column as the ``stereodeblur deblur`` options that give it."""
-    lines = ["| column | options |", "|---|---|"]
-    lines += [f"| {c.key} | `{c.flags()}` |" for c in columns]
-    return "\n".join(lines)
-
-
-def report(rows, *, sweep: bool, command: str, seconds: float) -> str:
-    """The whole Markdown report."""
-    parts = [
-        "# Paper benchmark (Tables 2-4)",
-        f"Command: `{command}`; {seconds / 60:.1f} min in this run (cached results are reused).",
-        "## Table 2: deblurring with gt motion boundaries masked (PSNR dB, AEP / ADE px)",
-        table_masked(rows),
-        "## Table 3: deblurring with motion boundaries (PSNR dB)",
-        table_metric(rows, "psnr"),
-        "## Table 4: deblurring with motion boundaries (SSIM)",
-        table_metric(rows, "ssim"),
-        "## Ours with the true motion (PSNR dB / SSIM)",
-        table_true_motion(rows),
-        "## Motion-boundary weights of the full methods",
-        table_weights(rows),
-    ]
-    if sweep:
-        parts += ["## Alpha sweep: ours (full) at fixed alpha vs auto (PSNR dB)", table_sweep(rows)]
-    parts += ["## Checks", "\n".join(f"- {s}" for s in summary(rows, sweep=sweep))]
-    parts += ["## Columns", legend(COLUMNS + (TRUE_MOTION,) + MASKED_COLUMNS)]
-    return "\n\n".join(parts) + "\n"
-
-
-# --- CLI ------------------------------------------------------------------------------------
-
-
-def main(args) -> int:
-    """CLI entry: render missing scenes, evaluate (resumably), write tables and figures."""
-    import sys
-
-    from ..cli import Progress, parse_size
+    Parameters
+    ----------
+    work : path
+        Work folder; everything goes under ``WORK/WxH/`` (module docstring).
+    size : (width, height)
+    scenes : sequence of str, optional
+        Scene names, ``NAME`` or ``NAME_noisy`` (default: :func:`default_scenes`).
+    settings : DeblurSettings, optional
+        Base settings (samples, iterations, segments); each column sets its own switches.
+    alpha_sweep, masked : bool
+        Also run the alpha sweep; run Table 2's masked columns.
+    render_samples : int
+        Instants averaged per rendered frame.
+    command : str
+        How the run was started, quoted in the report.
+    progress : callable, optional
+        Receives :class:`~stereodeblur.progress.Progress` reports.
+    """
+    from ..io.outputs import atomic_write_text
     from ..pipeline import DeblurSettings
 
-    say = Progress(args.quiet)
     start = time.perf_counter()
-    width, height = parse_size(args.size)
-    size = f"{width}x{height}"
-    names = [n.strip() for n in args.scenes.split(",")] if args.scenes else default_scenes()
+    names = list(scenes) if scenes else default_scenes()
     for name in names:
         scene_kind(name)
-    work = Path(args.work) / size
-    columns = list(COLUMNS) + [TRUE_MOTION]
-    columns += [] if args.no_masked else list(MASKED_COLUMNS)
-    if args.alpha_sweep:
-        columns += [sweep_column(a) for a in ALPHA_SWEEP]
-    base = DeblurSettings(
-        num_samples=args.samples, num_irls=args.irls, num_cg=args.cg, num_segments=args.segments
-    )
-    render_missing(
-        work / "scenes", names, (width, height), num_samples=args.render_samples, progress=say
-    )
+    folder = Path(work) / f"{size[0]}x{size[1]}"
+    columns = bench_columns(alpha_sweep=alpha_sweep, masked=masked)
+    base = DeblurSettings() if settings is None else settings
+    render_missing(folder / "scenes", names, size, num_samples=render_samples, progress=progress)
     rows = []
     for name in names:
-        cache = work / "cache" / name
-        row = evaluate_scene(work / "scenes" / name, cache, columns, base, progress=say)
-        write_figure(work / "scenes" / name, cache, COLUMNS, work / "figures" / f"{name}.png")
+        cache = folder / "cache" / name
+        row = evaluate_scene(folder / "scenes" / name, cache, columns, base, progress=progress)
+        write_figure(folder / "scenes" / name, cache, COLUMNS, folder / "figures" / f"{name}.png")
         rows.append(row)
-    command = "stereodeblur " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
     seconds = time.perf_counter() - start
-    text = report(rows, sweep=args.alpha_sweep, command=command, seconds=seconds)
-    print(text)
-    (work / "paper.md").write_text(text, encoding="utf-8")
-    (work / "paper.json").write_text(
-        json.dumps([asdict(r) for r in rows], indent=1, allow_nan=True), encoding="utf-8"
-    )
-    say(f"wrote {work / 'paper.md'}, {work / 'paper.json'} and {work / 'figures'}")
-    return 0
+    text = markdown_report(rows, sweep=alpha_sweep, command=command, seconds=seconds)
+    atomic_write_text(folder / "paper.md", text)
+    data = json.dumps([asdict(r) for r in rows], indent=1, allow_nan=True)
+    atomic_write_text(folder / "paper.json", data)
+    report(progress, f"wrote {folder / 'paper.md'}, {folder / 'paper.json'} and figures")
+    return PaperBench(tuple(rows), text, folder)

@@ -12,10 +12,14 @@ content enters the view from outside.
 from __future__ import annotations
 
 import json
+import os
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+
+from ..progress import ProgressCallback, report
 
 FRAME = 1
 
@@ -38,7 +42,9 @@ class PlanarRow:
     seconds: float
 
 
-def evaluate_scene(root: Path, name: str, size: str, *, progress=None) -> PlanarRow:
+def evaluate_scene(
+    root: Path, name: str, size: str, *, progress: ProgressCallback | None = None
+) -> PlanarRow:
     """Deblur frame 1 of a rendered planar scene with both kernel types and the scene flow."""
     from ..io.scene import open_scene
     from ..pipeline import DeblurSettings, deblur_frame
@@ -119,31 +125,55 @@ def summary(rows: list[PlanarRow]) -> str:
     )
 
 
-def main(args) -> int:
-    """CLI entry: render missing scenes, evaluate, print and save the table."""
-    from ..cli import Progress, parse_size
+@dataclass(frozen=True)
+class PlanarBench:
+    """A run of :func:`run_planar_bench`: its rows, the Markdown table and checks, the files."""
+
+    rows: tuple[PlanarRow, ...]
+    table: str
+    summary: str
+    markdown: Path
+    json: Path
+
+
+def run_planar_bench(
+    work: str | os.PathLike,
+    *,
+    sizes: Sequence[tuple[int, int]] = ((320, 240), (640, 480)),
+    scenes: Sequence[str] | None = None,
+    progress: ProgressCallback | None = None,
+) -> PlanarBench:
+    """Render the missing planar scenes under ``work``, evaluate them, write the table.
+
+    Parameters
+    ----------
+    work : path
+        Folder for the rendered scenes (``WORK/WxH/NAME``) and the results
+        (``WORK/planar.md``, ``WORK/planar.json``).
+    sizes : sequence of (width, height)
+    scenes : sequence of str, optional
+        Planar motion names (default: all, :data:`~stereodeblur.synth.planar.PLANAR_MOTIONS`).
+    progress : callable, optional
+        Receives :class:`~stereodeblur.progress.Progress` reports.
+    """
+    from ..io.outputs import atomic_write_text
     from ..synth.planar import PLANAR_MOTIONS, write_planar_set
 
-    say = Progress(args.quiet)
-    work = Path(args.work)
-    names = args.scenes.split(",") if args.scenes else list(PLANAR_MOTIONS)
+    work = Path(work)
+    names = list(scenes) if scenes else list(PLANAR_MOTIONS)
     rows = []
-    for size_text in args.sizes.split(","):
-        w, h = parse_size(size_text)
-        size = f"{w}x{h}"
+    for width, height in sizes:
+        size = f"{width}x{height}"
         base = work / size
         missing = [n for n in names if not (base / n / "camera.json").is_file()]
         if missing:
-            say(f"rendering {len(missing)} planar scene(s) at {size}")
-            write_planar_set(base, size=(w, h), names=missing, progress=say)
-        for name in names:
-            say(f"{size} {name}")
+            report(progress, f"rendering {len(missing)} planar scene(s) at {size}")
+            write_planar_set(base, size=(width, height), names=missing, progress=progress)
+        for k, name in enumerate(names):
+            report(progress, f"{size} {name}", k, len(names))
             rows.append(evaluate_scene(base / name, name, size))
-    table = format_table(rows)
-    print(table)
-    print()
-    print(summary(rows))
+    table, checks = format_table(rows), summary(rows)
     work.mkdir(parents=True, exist_ok=True)
-    (work / "planar.md").write_text(table + "\n\n" + summary(rows) + "\n")
-    (work / "planar.json").write_text(json.dumps([asdict(r) for r in rows], indent=1))
-    return 0
+    markdown = atomic_write_text(work / "planar.md", table + "\n\n" + checks + "\n")
+    data = atomic_write_text(work / "planar.json", json.dumps([asdict(r) for r in rows], indent=1))
+    return PlanarBench(tuple(rows), table, checks, markdown, data)

@@ -34,9 +34,9 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -44,6 +44,7 @@ import numpy as np
 
 from ..geometry.camera import StereoCamera
 from ..geometry.rigid import se3_exp, so3_log
+from ..progress import ProgressCallback, report
 from .metrics import disparity_error, endpoint_error
 
 MOTORCYCLE_K = np.array([[994.978, 0.0, 311.193], [0.0, 994.978, 254.877], [0.0, 0.0, 1.0]])
@@ -347,55 +348,74 @@ def format_sceneflow_table(results, motorcycle: MotorcycleResult | None = None) 
     return "\n".join(lines) + "\n"
 
 
-def main(args) -> int:
-    """CLI entry (``stereodeblur bench sceneflow``): render missing scenes, evaluate.
+@dataclass(frozen=True)
+class SceneFlowBench:
+    """A run of :func:`run_sceneflow_bench`: results, the Markdown tables, the files."""
 
-    Reads from ``args`` (all optional): ``sizes`` (comma-separated WIDTHxHEIGHT,
-    default ``640x480``), ``scenes`` (comma-separated names of planar motions and
-    object scenes, ``NAME_noisy`` for a noisy variant; default every planar motion and
-    every noiseless object scene), ``work`` (folder for rendered scenes and results, default
-    ``bench-sceneflow``), ``frame`` (default 1), ``no_motorcycle`` (skip the
-    motorcycle check) and ``quiet``. Prints the Markdown tables and writes
-    ``WORK/sceneflow.md`` and ``WORK/sceneflow.json``.
+    results: tuple[SceneFlowBenchResult, ...]
+    motorcycle: MotorcycleResult | None
+    table: str
+    markdown: Path
+    json: Path
+
+
+def run_sceneflow_bench(
+    work: str | os.PathLike,
+    *,
+    sizes: Sequence[tuple[int, int]] = ((640, 480),),
+    scenes: Sequence[str] | None = None,
+    frame: int = 1,
+    motorcycle: bool = True,
+    progress: ProgressCallback | None = None,
+) -> SceneFlowBench:
+    """Render the missing scenes under ``work``, estimate and measure their scene flow.
+
+    Parameters
+    ----------
+    work : path
+        Folder for the rendered scenes (``WORK/WxH/NAME``) and the results
+        (``WORK/sceneflow.md``, ``WORK/sceneflow.json``).
+    sizes : sequence of (width, height)
+    scenes : sequence of str, optional
+        Planar motions and object scenes, ``NAME_noisy`` for a noisy variant (default:
+        every planar motion and every noiseless object scene).
+    frame : int
+        Frame t whose motion to t + 1 is estimated.
+    motorcycle : bool
+        Also run :func:`run_motorcycle_check`.
+    progress : callable, optional
+        Receives :class:`~stereodeblur.progress.Progress` reports.
     """
+    from ..io.outputs import atomic_write_text
     from ..synth.objects import OBJECT_SCENES
     from ..synth.planar import PLANAR_MOTIONS, write_planar_set
     from .paper_bench import render_missing
 
-    quiet = bool(getattr(args, "quiet", False))
-
-    def say(message: str) -> None:
-        if not quiet:
-            print(message, file=sys.stderr, flush=True)
-
-    work = Path(getattr(args, "work", None) or "bench-sceneflow")
-    scenes = getattr(args, "scenes", None)
-    names = scenes.split(",") if scenes else list(PLANAR_MOTIONS) + list(OBJECT_SCENES)
-    frame = int(getattr(args, "frame", None) or 1)
+    work = Path(work)
+    names = list(scenes) if scenes else list(PLANAR_MOTIONS) + list(OBJECT_SCENES)
     results = []
-    for size_text in (getattr(args, "sizes", None) or "640x480").split(","):
-        width, height = (int(v) for v in size_text.lower().split("x"))
+    for width, height in sizes:
         base = work / f"{width}x{height}"
         missing = [n for n in names if not (base / n / "camera.json").is_file()]
         planar = [n for n in missing if n in PLANAR_MOTIONS]
         if planar:
-            say(f"rendering {len(planar)} planar scene(s) at {width}x{height}")
-            write_planar_set(base, size=(width, height), names=planar, progress=say)
-        render_missing(base, [n for n in missing if n not in planar], (width, height), progress=say)
-        for name in names:
-            say(f"scene flow {width}x{height} {name}")
+            report(progress, f"rendering {len(planar)} planar scene(s) at {width}x{height}")
+            write_planar_set(base, size=(width, height), names=planar, progress=progress)
+        others = [n for n in missing if n not in planar]
+        render_missing(base, others, (width, height), progress=progress)
+        for k, name in enumerate(names):
+            report(progress, f"scene flow {width}x{height} {name}", k, len(names))
             results.append(evaluate_scene(base / name, frame=frame))
-    motorcycle = None
-    if not getattr(args, "no_motorcycle", False):
-        say("scene flow: motorcycle (static clip)")
-        motorcycle = run_motorcycle_check()
-    table = format_sceneflow_table(results, motorcycle)
-    print(table)
+    check = None
+    if motorcycle:
+        report(progress, "scene flow: motorcycle (static clip)")
+        check = run_motorcycle_check()
+    table = format_sceneflow_table(results, check)
     work.mkdir(parents=True, exist_ok=True)
-    (work / "sceneflow.md").write_text(table)
+    markdown = atomic_write_text(work / "sceneflow.md", table)
     data = {
         "scenes": [asdict(r) for r in results],
-        "motorcycle": None if motorcycle is None else asdict(motorcycle),
+        "motorcycle": None if check is None else asdict(check),
     }
-    (work / "sceneflow.json").write_text(json.dumps(data, indent=1) + "\n")
-    return 0
+    path = atomic_write_text(work / "sceneflow.json", json.dumps(data, indent=1) + "\n")
+    return SceneFlowBench(tuple(results), check, table, markdown, path)

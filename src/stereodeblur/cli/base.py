@@ -1,0 +1,83 @@
+"""What every command's parser shares: the parser class, exit codes and option types.
+
+Option types raise :class:`argparse.ArgumentTypeError`, so a bad value ends as argparse's one
+line ``stereodeblur <command>: error: argument --size: ...`` with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+# Image sizes the synthetic scenes, the demo and the benchmarks accept: below 16 px the
+# scene flow has no room for its windows, above 8192 px one float RGB frame is 800 MB.
+MIN_SIDE = 16
+MAX_SIDE = 8192
+
+
+class Parser(argparse.ArgumentParser):
+    """``argparse`` parser whose errors are one line with exit code 2."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"stereodeblur: error: {message}\n")
+
+
+def add_quiet(parser: argparse.ArgumentParser) -> None:
+    """``-q/--quiet``: no progress lines on stderr."""
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+
+
+def size(text: str) -> tuple[int, int]:
+    """Option type ``WIDTHxHEIGHT`` -> ``(width, height)``, each side in 16..8192."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected WIDTHxHEIGHT (e.g. 640x480), got {text!r}"
+        ) from None
+    if not (MIN_SIDE <= width <= MAX_SIDE and MIN_SIDE <= height <= MAX_SIDE):
+        raise argparse.ArgumentTypeError(
+            f"each side must be in {MIN_SIDE}..{MAX_SIDE} pixels, got {text!r}"
+        )
+    return width, height
+
+
+def sizes(text: str) -> tuple[tuple[int, int], ...]:
+    """Option type: comma-separated ``WIDTHxHEIGHT`` sizes."""
+    return tuple(size(part.strip()) for part in text.split(","))
+
+
+def names(text: str) -> tuple[str, ...]:
+    """Option type: comma-separated names (empty entries dropped)."""
+    return tuple(part.strip() for part in text.split(",") if part.strip())
+
+
+def integer(low: int, high: int | None = None):
+    """Option type: an integer in ``low..high`` (no upper bound for None)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < low or (high is not None and value > high):
+            span = f">= {low}" if high is None else f"in {low}..{high}"
+            raise argparse.ArgumentTypeError(f"must be {span}, got {value}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def positive_number(text: str) -> float:
+    """Option type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value

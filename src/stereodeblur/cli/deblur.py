@@ -1,0 +1,157 @@
+"""``stereodeblur deblur``: deblur frames of a clip and write them as a scene."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..errors import InputError
+from .base import EXIT_USAGE, add_quiet, integer
+from .printer import progress_printer
+from .settings_options import add_settings_options, settings_from_arguments
+from .sources import add_source_options, input_paths, open_source, source_spec
+
+VIEWS = {"left": ("left",), "right": ("right",), "both": ("left", "right")}
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "deblur",
+        help="deblur frames of a scene",
+        description="Deblur frames of a scene folder (stereo-video/1 format), a KITTI folder "
+        "or a video pair and write them as a scene.",
+    )
+    p.add_argument(
+        "source",
+        nargs="+",
+        help="input: a scene folder, a KITTI folder, or two videos LEFT RIGHT (with --calib)",
+    )
+    p.add_argument("-o", "--output", required=True, help="output scene folder")
+    p.add_argument("--frames", help="frames to deblur: '1,3', '10:200' (default: all)")
+    p.add_argument("--views", choices=list(VIEWS), default="both")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="deblur finished frames again; allow writing into a folder of another scene",
+    )
+    add_quiet(p)
+    p.add_argument(
+        "--sceneflow",
+        metavar="FILE",
+        help="reuse a scene flow saved by 'stereodeblur sceneflow' (OUT/sceneflow/NNNNNN.npz) "
+        "for the one frame given with --frames",
+    )
+    p.add_argument(
+        "--point-cloud",
+        action="store_true",
+        help="also write a coloured PLY per frame (OUT/pointcloud/VIEW/NNNNNN.ply)",
+    )
+    r = p.add_argument_group("running")
+    r.add_argument(
+        "--workers",
+        type=integer(1, 1024),
+        help="local worker processes (default: one per core, as memory allows; 1: in process)",
+    )
+    r.add_argument(
+        "--scheduler",
+        help="address of a Dask distributed scheduler, tcp://HOST:PORT (needs stereodeblur[dask]); "
+        "input and output paths must be shared with its workers",
+    )
+    add_source_options(p)
+    add_settings_options(p)
+    p.set_defaults(func=run)
+
+
+def select_frames(text: str | None, num_frames: int):
+    """``--frames`` checked against the clip (before the selection is expanded)."""
+    from ..clip.frames import parse_frames
+
+    try:
+        return parse_frames(text, num_frames)
+    except InputError as err:
+        raise InputError(f"--{err}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from .motion_check import check_gt_motion
+
+    settings = settings_from_arguments(args)
+    spec = source_spec(args)
+    source = open_source(spec)
+    frames = None if args.frames is None else select_frames(args.frames, source.num_frames)
+    views = VIEWS[args.views]
+    if settings.motion_source == "gt":
+        check_gt_motion(source, range(source.num_frames) if frames is None else frames, settings)
+    if args.sceneflow:
+        return _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views)
+    return _deblur_clip(args, settings, spec, frames, views)
+
+
+def _deblur_clip(args, settings, spec, frames, views) -> int:
+    from ..clip import deblur_clip
+
+    report = deblur_clip(
+        spec,
+        args.output,
+        frames=None if frames is None else list(frames),
+        views=list(views),
+        settings=settings,
+        overwrite=args.overwrite,
+        point_cloud=args.point_cloud,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+        command=["stereodeblur", *args.argv],
+    )
+    failed = report.failed
+    if failed:
+        first = failed[0]
+        print(
+            f"stereodeblur: error: {len(failed)} of {len(report.records)} frame(s) failed "
+            f"(first: frame {first.index} {first.view}: {first.error}); see {report.log}",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE if all(r.input_error for r in failed) else 1
+    skipped = f", {len(report.skipped)} already done" if report.skipped else ""
+    print(f"wrote {report.done} frame(s) to {report.output}{skipped}")
+    return 0
+
+
+def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) -> int:
+    """``deblur --sceneflow FILE``: one frame, its motion read from ``stereodeblur sceneflow``."""
+    from ..io.outputs import check_output, mark_output
+    from ..io.scene import SceneWriter
+    from ..pipeline import deblur_frame, neighbour_of, sceneflow_motion, with_boundary_flow
+    from ..sceneflow.storage import load_sceneflow
+
+    if settings.motion_source == "initial-flow" or frames is None or len(frames) != 1:
+        raise InputError(
+            "--sceneflow FILE needs --frames with the one frame the file describes "
+            "and --motion-source sceneflow"
+        )
+    index = frames[0]
+    sceneflow = load_sceneflow(args.sceneflow)
+    if sceneflow.shape != tuple(source.shape):
+        raise InputError(
+            f"{args.sceneflow}: scene flow of size {sceneflow.shape}, "
+            f"frames are {tuple(source.shape)}"
+        )
+    check_output(
+        args.output,
+        [*input_paths(spec), args.sceneflow],
+        subfolders=views,
+        command="deblur",
+    )
+    neighbour = neighbour_of(index, source.num_frames)
+    progress = progress_printer(args.quiet)
+    writer = SceneWriter(args.output, source.info, overwrite=args.overwrite, protect=[source.root])
+    for view in views:
+        motion = sceneflow_motion(sceneflow, index, neighbour, view)
+        motion = with_boundary_flow(motion, source, settings, source.read_frame(view, index))
+        result = deblur_frame(
+            source, index, view=view, settings=settings, motion=motion, progress=progress
+        )
+        writer.write_frame(view, index, result.image)
+    mark_output(writer.root, "deblur")
+    print(f"wrote {len(views)} frame(s) to {writer.root}")
+    return 0

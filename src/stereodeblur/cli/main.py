@@ -1,0 +1,52 @@
+"""The ``stereodeblur`` command: one parser per command, errors as one line with exit code 2."""
+
+from __future__ import annotations
+
+import sys
+
+from ..errors import InputError
+from . import bench, deblur, demo, kernels, render_view, sceneflow, synth
+from .base import EXIT_INTERRUPTED, EXIT_USAGE, Parser
+
+COMMANDS = (deblur, sceneflow, demo, synth, render_view, kernels, bench)
+# Errors that mean "the input is not what was expected": one line, exit code 2.
+INPUT_ERRORS = (InputError, FileNotFoundError, NotADirectoryError, IsADirectoryError)
+
+
+def build_parser() -> Parser:
+    """The parser of every command (each command module adds its own)."""
+    parser = Parser(
+        prog="stereodeblur",
+        description="Remove motion blur from rectified stereo video "
+        "(Sellent, Rother, Roth, ECCV 2016).",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for command in COMMANDS:
+        command.add_parser(sub)
+    return parser
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exit:  # --help, --version, usage errors (already printed)
+        return exit.code if isinstance(exit.code, int) else EXIT_USAGE
+    args.argv = argv
+    try:
+        return args.func(args)
+    except INPUT_ERRORS as err:
+        message = str(err).splitlines()[0] if str(err) else type(err).__name__
+        print(f"stereodeblur: error: {message}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("stereodeblur: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED

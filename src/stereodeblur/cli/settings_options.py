@@ -1,0 +1,197 @@
+"""DeblurSettings <-> command-line options: the one place that maps one to the other.
+
+:data:`OPTIONS` lists, per :class:`~stereodeblur.settings.DeblurSettings` field, its option;
+the option's default is the field's default. :func:`add_settings_options` adds options to a
+parser, :func:`settings_from_arguments` builds the settings from parsed arguments and
+:func:`arguments_for` gives the options that reproduce given settings.
+
+Limits, checked by the option types before anything is read or allocated:
+
+- ``--samples`` in 2..1000. One sample is the frame's centre instant alone, an identity
+  "blur" that returns the input, so a blur needs at least 2. Building the operator costs
+  memory in proportion to samples x pixels (each sample adds 4 bilinear weights per pixel
+  before they are merged); 1000, 14 times the paper's N = 70, is past any gain.
+- ``--irls`` and ``--cg`` in 1..1000: 0 iterations return the input unchanged; the paper
+  uses 10 and 25, and each IRLS iteration keeps its weights (one float per pixel).
+- ``--alpha`` ``auto`` or in (0, 1]: the prior weight of Eq. 6 for images in [0, 1]; at 1
+  the prior already outweighs the data term, beyond it the result is flat.
+- ``--segments`` in 1..100000 superpixels.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from .base import integer
+
+SAMPLES = (2, 1000)
+ITERATIONS = (1, 1000)
+SEGMENTS = (1, 100_000)
+ALPHA_MAX = 1.0
+
+
+def _settings_module():
+    try:
+        from .. import settings
+    except ImportError:  # until stereodeblur.settings lands
+        from .. import pipeline as settings
+    return settings
+
+
+def alpha(text: str) -> float | str:
+    """Option type of ``--alpha``: ``'auto'`` or a number in (0, 1]."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a number, got {text!r}") from None
+    if not 0 < value <= ALPHA_MAX:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or in (0, {ALPHA_MAX:g}], got {text!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class SettingOption:
+    """The option of one DeblurSettings field."""
+
+    field: str
+    flag: str
+    help: str
+    type: Callable[[str], object] | None = None
+    choices: tuple[str, ...] | None = None
+    metavar: str | None = None
+
+
+def _options() -> tuple[SettingOption, ...]:
+    s = _settings_module()
+    return (
+        SettingOption(
+            "kernels",
+            "--kernels",
+            "blur kernels from 3D homographies (paper) or 2D displacements (baseline)",
+            choices=tuple(s.KERNELS),
+        ),
+        SettingOption(
+            "motion_source",
+            "--motion-source",
+            "where the motion comes from (default: %(default)s)",
+            choices=tuple(s.MOTION_SOURCES),
+        ),
+        SettingOption(
+            "num_samples",
+            "--samples",
+            f"time samples per exposure, {SAMPLES[0]}..{SAMPLES[1]} (paper: 70)",
+            type=integer(*SAMPLES),
+        ),
+        SettingOption(
+            "alpha",
+            "--alpha",
+            "prior weight in (0, 1], or 'auto': from the input's noise level (default; "
+            "paper: 0.001)",
+            type=alpha,
+        ),
+        SettingOption(
+            "boundary_mask",
+            "--boundary-mask",
+            "gt: give the scene's gt/mixed pixels weight 0 (the paper's masked experiment)",
+            choices=tuple(m for m in s.BOUNDARY_MASKS if m is not None),
+        ),
+        SettingOption(
+            "num_irls",
+            "--irls",
+            f"IRLS iterations, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 10)",
+            type=integer(*ITERATIONS),
+        ),
+        SettingOption(
+            "num_cg",
+            "--cg",
+            f"CG steps per IRLS iteration, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 25)",
+            type=integer(*ITERATIONS),
+        ),
+        SettingOption(
+            "num_segments",
+            "--segments",
+            "superpixels of the scene flow (default: 1200 at 640x480, scaled with area)",
+            type=integer(*SEGMENTS),
+        ),
+    )
+
+
+BOUNDARY_HELP = (
+    "motion boundaries: adaptive (default: blur from the dense optical flow near motion "
+    "boundaries; without one, each instant shows the surface covering the pixel then, pixels "
+    "showing surfaces hidden at the frame centre are down-weighted and the blurred frame is kept "
+    "where the motion does not predict the neighbouring frames) or paper (Eq. 5 data weights "
+    "as published)"
+)
+
+
+def _defaults() -> dict:
+    fields = dataclasses.fields(_settings_module().DeblurSettings)
+    return {f.name: f.default for f in fields if f.default is not dataclasses.MISSING}
+
+
+def add_settings_options(
+    parser: argparse.ArgumentParser, fields: Iterable[str] | None = None
+) -> None:
+    """Add the options of ``fields`` (default: every field with an option) to ``parser``."""
+    options = {o.field: o for o in _options()}
+    wanted = list(options) + ["boundary_weights"] if fields is None else list(fields)
+    defaults = _defaults()
+    g = parser.add_argument_group("method (every variant of the paper's tables is a combination)")
+    for name in wanted:
+        if name == "boundary_weights":
+            _add_boundary_weights(g, defaults[name])
+            continue
+        o = options[name]
+        g.add_argument(
+            o.flag,
+            dest=name,
+            type=o.type,
+            choices=o.choices,
+            default=defaults[name],
+            help=o.help,
+            metavar=o.metavar,
+        )
+    parser.set_defaults(settings_fields=tuple(wanted))
+
+
+def _add_boundary_weights(group, default: str) -> None:
+    choices = [w for w in _settings_module().BOUNDARY_WEIGHTS if w != "none"]
+    exclusive = group.add_mutually_exclusive_group()
+    exclusive.add_argument(
+        "--boundary-weights", dest="boundary_weights", choices=choices, default=default,
+        help=BOUNDARY_HELP,
+    )  # fmt: skip
+    exclusive.add_argument(
+        "--no-boundary-weights",
+        dest="boundary_weights",
+        action="store_const",
+        const="none",
+        help="no motion-boundary handling (w = 1)",
+    )
+
+
+def settings_from_arguments(args: argparse.Namespace, base=None):
+    """DeblurSettings of ``base`` (default: the defaults) with the parsed options' values."""
+    settings = _settings_module().DeblurSettings() if base is None else base
+    values = vars(args)
+    return dataclasses.replace(settings, **{name: values[name] for name in args.settings_fields})
+
+
+def arguments_for(settings) -> list[str]:
+    """Command-line options that give ``settings`` (fields without an option excepted)."""
+    out: list[str] = []
+    for o in _options():
+        value = getattr(settings, o.field)
+        if value is not None:
+            out += [o.flag, repr(value) if isinstance(value, float) else str(value)]
+    if settings.boundary_weights == "none":
+        out.append("--no-boundary-weights")
+    else:
+        out += ["--boundary-weights", settings.boundary_weights]
+    return out

@@ -1,0 +1,136 @@
+"""The columns of the paper's Tables 2, 3 and 4 and the results they give.
+
+Frame 1 of the left view of every scene is deblurred by each *column*, a
+combination of the pipeline's settings (:class:`~stereodeblur.pipeline.DeblurSettings`):
+
+============================  ===============  ============  =================  ========
+column                        motion source    kernels       boundary weights   alpha
+============================  ===============  ============  =================  ========
+ground-truth 2D displacement  gt               displacement  none               0.001
+initial optical flow          initial-flow     displacement  none               0.001
+2D projection of scene flow   sceneflow        displacement  none               0.001
+3D homographies               sceneflow        homography    none               0.001
+paper (full)                  sceneflow        homography    paper (Eq. 5)      0.001
+ours (full)                   sceneflow        homography    adaptive           auto
+============================  ===============  ============  =================  ========
+
+Table 2 ("without motion discontinuities") repeats the first four with
+``boundary_mask='gt'``: the scene's gt/mixed pixels get weight 0 throughout.
+Tables 3 (PSNR) and 4 (SSIM) use all six columns without the mask. A seventh run,
+"ours, true motion" (:data:`TRUE_MOTION`: ours full with motion source gt, the same
+piecewise-planar model fitted to the true disparity and flow), is no method but shows how
+far a better motion estimate could take the blur model. The alpha sweep deblurs with
+"ours (full)" at every alpha of :data:`ALPHA_SWEEP` and compares with ``alpha='auto'``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+from ..pipeline import PAPER_ALPHA
+
+FRAME = 1
+ALPHA_SWEEP = (3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
+
+
+@dataclass(frozen=True)
+class Column:
+    """One method of the tables: a combination of the pipeline's switches."""
+
+    key: str
+    title: str
+    motion_source: str
+    kernels: str
+    boundary_weights: str = "none"
+    alpha: float | str = PAPER_ALPHA
+    boundary_mask: str | None = None
+
+    def settings(self, base):
+        """``base`` (a DeblurSettings) with this column's switches."""
+        return replace(
+            base,
+            motion_source=self.motion_source,
+            kernels=self.kernels,
+            boundary_weights=self.boundary_weights,
+            alpha=self.alpha,
+            boundary_mask=self.boundary_mask,
+        )
+
+    def describe(self) -> str:
+        """The column's settings, e.g. ``motion_source=gt, kernels=displacement, ...``."""
+        mask = f", boundary_mask={self.boundary_mask}" if self.boundary_mask else ""
+        return (
+            f"motion_source={self.motion_source}, kernels={self.kernels}, "
+            f"boundary_weights={self.boundary_weights}, alpha={self.alpha}{mask}"
+        )
+
+
+COLUMNS = (
+    Column("gt-displacement", "gt 2D displacement", "gt", "displacement"),
+    Column("initial-flow", "initial optical flow", "initial-flow", "displacement"),
+    Column("sceneflow-2d", "2D projection of scene flow", "sceneflow", "displacement"),
+    Column("homographies", "3D homographies", "sceneflow", "homography"),
+    Column("paper-full", "paper (full)", "sceneflow", "homography", "paper"),
+    Column("ours-full", "ours (full)", "sceneflow", "homography", "adaptive", "auto"),
+)
+"""Tables 3 and 4."""
+
+MASKED_COLUMNS = tuple(
+    Column(
+        "masked-" + c.key, c.title, c.motion_source, c.kernels, c.boundary_weights, c.alpha, "gt"
+    )
+    for c in COLUMNS[:4]
+)
+"""Table 2: the 2D and 3D kernels with gt/mixed masked out."""
+
+FULL_KEYS = ("paper-full", "ours-full")
+
+TRUE_MOTION = Column(
+    "ours-true-motion", "ours, true motion", "gt", "homography", "adaptive", "auto"
+)
+"""Ours (full) with the scene flow fitted to the true disparity and flow: how far a better
+motion estimate could take the blur model (not a method; kept out of Tables 3 and 4)."""
+
+
+def sweep_column(alpha: float) -> Column:
+    """ "ours (full)" at a fixed ``alpha``."""
+    return Column(
+        f"sweep-{alpha:g}", f"ours, alpha {alpha:g}", "sceneflow", "homography", "adaptive", alpha
+    )
+
+
+@dataclass(frozen=True)
+class ColumnResult:
+    """One column on one scene.
+
+    ``aep`` / ``ade`` are NaN where the column has no such estimate; the weight
+    statistics are NaN for fixed weights.
+    """
+
+    column: str
+    psnr: float
+    ssim: float
+    aep: float
+    ade: float
+    alpha: float
+    seconds: float
+    low_weight_percent: float = math.nan
+    low_weight_explained_percent: float = math.nan
+    changed_last_percent: float = math.nan
+    signature: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SceneResult:
+    """All columns on one scene, plus the blurred input's scores."""
+
+    scene: str
+    kind: str  # 'object' or 'planar'
+    noisy: bool
+    size: str
+    psnr_blurred: float
+    ssim_blurred: float
+    columns: dict
+    sceneflow_seconds: float = math.nan
+    warnings: tuple[str, ...] = ()
