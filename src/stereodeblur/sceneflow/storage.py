@@ -105,14 +105,17 @@ def load_sceneflow(path: str | os.PathLike) -> SceneFlow:
         raise FileNotFoundError(f"scene flow file not found: {path}")
     expected = f"expected a {FORMAT} .npz archive"
     try:
-        with open(path, "rb") as handle:
+        with open(path, "rb") as handle:  # ours, so closed whatever np.load raises
             if handle.read(4) != b"PK\x03\x04":  # every .npz is a zip archive
                 raise InputError(f"not a scene flow file: {path} ({expected})")
-        with np.load(path, allow_pickle=False) as data:
-            missing = [k for k in _KEYS if k not in data.files]
-            if missing:
-                raise InputError(f"not a scene flow file: {path} (missing {', '.join(missing)})")
-            arrays = {k: data[k] for k in _KEYS}
+            handle.seek(0)
+            with np.load(handle, allow_pickle=False) as data:
+                missing = [k for k in _KEYS if k not in data.files]
+                if missing:
+                    raise InputError(
+                        f"not a scene flow file: {path} (missing {', '.join(missing)})"
+                    )
+                arrays = {k: data[k] for k in _KEYS}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError, MemoryError) as err:
         if isinstance(err, InputError):
             raise
