@@ -240,34 +240,52 @@ def _texture_patch(name: str, width: int, height: int) -> np.ndarray:
     return cv2.resize(texture, (width, height), interpolation=cv2.INTER_LINEAR)
 
 
-def _solid_object(solid: Solid, fx: float):
-    """The renderer's object for ``solid``, in its middle-of-clip pose."""
+def solid_object(
+    solid: Solid,
+    fx: float,
+    *,
+    patch=None,
+    magnification: float = MAGNIFICATION,
+    texel_size: float | None = None,
+):
+    """The renderer's object for ``solid``, in its middle-of-clip pose.
+
+    ``patch(width, height)`` makes the texture of that many texels (default: the
+    photograph ``solid.texture`` cropped and resized); ``magnification`` is the number
+    of pixels per texel where the object faces the camera at its centre's depth, unless
+    ``texel_size`` (scene units) is given.
+    """
     center = np.asarray(solid.center, dtype=np.float64)
     frame = so3_exp(np.asarray(solid.orientation, dtype=np.float64))
     twist = _twist(center, solid.velocity, solid.omega)
-    texel = center[2] * MAGNIFICATION / fx  # scene units per texel
+    texel = texel_size or center[2] * magnification / fx  # scene units per texel
     name = solid.name or solid.kind
+    if patch is None:
+
+        def patch(width, height):
+            return _texture_patch(solid.texture, width, height)
+
     if solid.kind == "sphere":
         (radius,) = solid.size
         half_turn = np.pi * radius / texel
-        texture = periodic_texture(_texture_patch(solid.texture, half_turn, half_turn + 1))
+        texture = periodic_texture(patch(half_turn, half_turn + 1))
         return SphereObject(center, radius, frame, twist, texture, name, solid.texture)
     if solid.kind == "cylinder":
         radius, half_height = solid.size
         half_turn = max(2, round(np.pi * radius / texel))
         rows = 2 * half_height / (np.pi * radius / half_turn) + 1
-        texture = periodic_texture(_texture_patch(solid.texture, half_turn, rows))
+        texture = periodic_texture(patch(half_turn, rows))
         return CylinderObject(
             center, radius, half_height, frame, twist, texture, name, solid.texture
         )
     if solid.kind == "box":
         half = np.asarray(solid.size, dtype=np.float64)
         side = 2 * half.max() / texel * 1.3 + 1
-        texture = _texture_patch(solid.texture, side, side)
+        texture = patch(side, side)
         return BoxObject(center, half, frame, twist, texture, texel, name, solid.texture)
     if solid.kind == "square":
         half_w, half_h = solid.size
-        texture = _texture_patch(solid.texture, 2 * half_w / texel + 1, 2 * half_h / texel + 1)
+        texture = patch(2 * half_w / texel + 1, 2 * half_h / texel + 1)
         h, w = texture.shape[:2]
         texel = max(2 * half_w / (w - 1), 2 * half_h / (h - 1))
         axes = np.stack([frame[:, 0], frame[:, 1]])
@@ -342,7 +360,7 @@ def object_setup(
     middle = (int(num_frames) - 1) / 2
     objects = [_background(spec.background, camera, size, exposure, num_frames, middle)]
     for solid in spec.solids:
-        obj = _solid_object(solid, camera.fx)
+        obj = solid_object(solid, camera.fx)
         objects.append(_moved(obj, se3_exp(-middle * obj.twist)))
     return SceneSetup(base, camera, exposure, size, num_frames, tuple(objects))
 

@@ -32,7 +32,22 @@ _LOADERS = {
 }
 
 TEXTURE_NAMES: tuple[str, ...] = tuple(_LOADERS)
-"""Names accepted by :func:`load_texture`, in the order the planar set cycles through."""
+"""Large textures, in the order the planar set cycles through."""
+
+# Further photographs shipped with the wheel (some smaller than 500 x 400), for the
+# randomised scene family (:mod:`stereodeblur.synth.family`).
+_LOADERS.update(
+    {
+        "chelsea": "chelsea",
+        "coins": "coins",
+        "moon": "moon",
+        "retina": "retina",
+        "page": "page",
+    }
+)
+
+PHOTO_NAMES: tuple[str, ...] = tuple(_LOADERS)
+"""Every name accepted by :func:`load_texture`: :data:`TEXTURE_NAMES` first."""
 
 
 @functools.cache
@@ -61,7 +76,7 @@ def load_texture(name: str, *, decode_srgb: bool = True) -> np.ndarray:
     Parameters
     ----------
     name : str
-        One of :data:`TEXTURE_NAMES`.
+        One of :data:`PHOTO_NAMES`.
     decode_srgb : bool
         Decode the sRGB curve of the stored 8-bit image to linear values (default).
 
@@ -71,5 +86,5 @@ def load_texture(name: str, *, decode_srgb: bool = True) -> np.ndarray:
         A fresh, writeable copy.
     """
     if name not in _LOADERS:
-        raise InputError(f"unknown texture {name!r}, expected one of {', '.join(TEXTURE_NAMES)}")
+        raise InputError(f"unknown texture {name!r}, expected one of {', '.join(PHOTO_NAMES)}")
     return _load(name, bool(decode_srgb)).copy()
