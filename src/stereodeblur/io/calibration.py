@@ -30,6 +30,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.camera import StereoCamera
+from .camera_json import json_object, read_camera
+from .intrinsics import check_intrinsics
 
 HORIZONTAL_TOLERANCE = 0.02  # |baseline y, z| / baseline x above this: not a horizontal pair
 SAME_TOLERANCE = 1e-6  # relative difference allowed between intrinsics that must agree
@@ -408,8 +410,6 @@ def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
     if stripped.startswith("<"):
         raise InputError(f"{path}: XML calibration files are not supported; save it as YAML")
     if stripped.startswith("{"):
-        from .scene import json_object, read_camera
-
         data = json_object(text, path)
         if "format" in data or "K" in data:
             info = read_camera(path)
@@ -427,18 +427,13 @@ def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
 def check_image_size(calibration: StereoCalibration, size: tuple[int, int], what: str) -> None:
     """Fail unless images of ``size = (width, height)`` fit the calibration.
 
-    The calibration's own image size, when it states one, must match; otherwise the
-    principal point must lie inside the image (a calibration for another resolution
-    would put it elsewhere).
+    The calibration's own image size, when it states one, must match, and the
+    intrinsics must be those of a real camera for that size
+    (:func:`~stereodeblur.io.intrinsics.check_intrinsics`).
     """
     width, height = size
     where = calibration.path or "calibration"
     if calibration.image_size is not None and tuple(calibration.image_size) != (width, height):
         cw, ch = calibration.image_size
         raise InputError(f"{where} is for {cw}x{ch} images but {what} is {width}x{height}")
-    cx, cy = calibration.camera.K[0, 2], calibration.camera.K[1, 2]
-    if not (-0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5):
-        raise InputError(
-            f"{where}: principal point ({cx:.1f}, {cy:.1f}) lies outside the "
-            f"{width}x{height} images of {what}; calibration for another resolution?"
-        )
+    check_intrinsics(calibration.camera.K, (width, height), where)

@@ -29,6 +29,10 @@ from ..errors import InputError
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 FLO_MAGIC = 202021.25
+# Largest image read (from its header, before any memory is spent): below OpenCV's own
+# limits (2**30 pixels, 2**20 per side), so the error names the file.
+MAX_PIXELS = 2**28
+MAX_SIDE = 2**20
 # Allowed PNG bit depths per colour type, and channels after dropping alpha.
 _PNG_COLOR_TYPES = {
     0: ((1, 2, 4, 8, 16), 1),  # grey
@@ -101,6 +105,11 @@ def _parse_ihdr(head: bytes, path) -> tuple[PngInfo, int]:
     width, height, bit_depth, color_type = struct.unpack(">IIBB", data[:10])
     if width == 0 or height == 0 or width >= 2**31 or height >= 2**31:
         raise InputError(f"corrupt PNG file {path}: invalid size {width}x{height}")
+    if width * height > MAX_PIXELS or max(width, height) > MAX_SIDE:
+        raise InputError(
+            f"{path} is {width}x{height}: images may have at most {MAX_PIXELS} pixels "
+            f"and {MAX_SIDE} per side"
+        )
     if color_type not in _PNG_COLOR_TYPES or bit_depth not in _PNG_COLOR_TYPES[color_type][0]:
         raise InputError(
             f"corrupt PNG file {path}: invalid colour type {color_type} with bit depth {bit_depth}"

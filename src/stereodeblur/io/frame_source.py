@@ -15,8 +15,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS, Exposure, StereoCamera
+from .camera_json import COLORS, CameraInfo
 from .formats import srgb_to_linear
-from .scene import COLORS, CameraInfo
 
 
 class FrameSource:

@@ -41,6 +41,8 @@ from ..errors import InputError
 from .calibration import stereo_from_projections
 from .formats import read_png, read_png_header
 from .frame_source import FrameSource, camera_info
+from .intrinsics import check_intrinsics
+from .scene import check_frame_size
 
 KITTI_FRAME_RATE = 10.0
 _BENCHMARK_NAME = re.compile(r"^(\d{6})_(\d{2})\.png$")
@@ -353,6 +355,7 @@ def open_kitti(
         data_dirs = [root / left_dir / "data", root / right_dir / "data"]
     files = {"left": left, "right": right}
     header = _check_headers(files)
+    check_frame_size(header.width, header.height, left[0])
     camera, entries = kitti_camera(calib_path, left_key, right_key)
     size = _rectified_size(entries, size_key, calib_path)
     if size is not None and size != (header.width, header.height):
@@ -360,6 +363,7 @@ def open_kitti(
             f"{left[0]} is {header.width}x{header.height} but {calib_path} says rectified "
             f"images are {size[0]}x{size[1]} ({size_key}); are these unrectified images?"
         )
+    check_intrinsics(camera.K, (header.width, header.height), f"{calib_path}: {left_key}")
     info = camera_info(
         camera,
         f"KITTI folder {root}",

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 if TYPE_CHECKING:
     import numpy as np
 
-    from .scene import CameraInfo
+    from .camera_json import CameraInfo
 
 
 @runtime_checkable

@@ -22,21 +22,23 @@ message naming the file and what was expected.
 
 from __future__ import annotations
 
-import json
-import math
 import operator
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.camera import VIEWS, Exposure, StereoCamera
+from ..geometry.camera import VIEWS
+from .camera_json import (
+    CameraInfo,
+    _camera_json,
+    read_camera,
+    write_camera,
+)
 from .formats import (
     PngInfo,
-    _atomic_write,
     _check_image,
     linear_to_srgb,
     read_flo,
@@ -50,132 +52,16 @@ from .formats import (
     write_pfm,
     write_png,
 )
+from .intrinsics import check_intrinsics
 
-FORMAT = "stereo-video/1"
-COLORS = ("linear", "srgb")
 GT_KINDS = ("sharp", "disparity", "flow", "mixed")
 _EXTENSIONS = {"frame": "png", "sharp": "png", "disparity": "pfm", "flow": "flo", "mixed": "png"}
-_CAMERA_KEYS = ("format", "K", "baseline", "frame_rate", "exposure", "color")
 _FRAME_NAME = re.compile(r"^(\d{6})\.png$")
 # Middlebury marks unknown flow with values above 1e9.
 FLOW_UNKNOWN = 1e10
-
-
-def _short(value, limit: int = 60) -> str:
-    """One-line, length-limited rendering of a value for error messages."""
-    try:
-        text = json.dumps(value)
-    except (TypeError, ValueError):
-        text = repr(value)
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-# --------------------------------------------------------------------------- camera.json
-
-
-@dataclass(frozen=True)
-class CameraInfo:
-    """Contents of ``camera.json``: stereo camera, frame timing and colour encoding."""
-
-    camera: StereoCamera
-    exposure: Exposure
-    color: str = "linear"
-
-    def __post_init__(self):
-        if self.color not in COLORS:
-            raise InputError(f"color must be 'linear' or 'srgb', got {self.color!r}")
-
-
-def _number(path, key: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise InputError(f"{path}: {key!r} must be a finite number, got {_short(value)}")
-    return float(value)
-
-
-def json_object(text: str, path) -> dict:
-    """``text`` parsed as a JSON object; a one-line :class:`InputError` naming ``path`` if not."""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(
-            f"{path}: invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
-        ) from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a JSON object, got {type(data).__name__}")
-    return data
-
-
-def read_camera(path: str | os.PathLike) -> CameraInfo:
-    """Read and validate ``camera.json`` (the file, or a scene folder holding it)."""
-    path = Path(path)
-    if path.is_dir():
-        path = path / "camera.json"
-    if not path.is_file():
-        raise FileNotFoundError(f"camera file not found: {path}")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {path}: {exc}") from exc
-    data = json_object(text, path)
-    unknown = sorted(set(data) - set(_CAMERA_KEYS))
-    if unknown:
-        raise InputError(
-            f"{path}: unknown key {unknown[0]!r}, expected only {', '.join(_CAMERA_KEYS)}"
-        )
-    for key in _CAMERA_KEYS[:-1]:
-        if key not in data:
-            raise InputError(f"{path}: missing key {key!r}")
-    if data["format"] != FORMAT:
-        raise InputError(f"{path}: 'format' must be {FORMAT!r}, got {_short(data['format'])}")
-    K = data["K"]
-    if not (
-        isinstance(K, list)
-        and len(K) == 3
-        and all(isinstance(row, list) and len(row) == 3 for row in K)
-    ):
-        raise InputError(f"{path}: 'K' must be a 3x3 list of numbers, got {_short(K)}")
-    K = [[_number(path, f"K[{r}][{c}]", v) for c, v in enumerate(row)] for r, row in enumerate(K)]
-    baseline = _number(path, "baseline", data["baseline"])
-    frame_rate = _number(path, "frame_rate", data["frame_rate"])
-    exposure = _number(path, "exposure", data["exposure"])
-    color = data.get("color", "linear")
-    if baseline <= 0:
-        raise InputError(f"{path}: 'baseline' must be > 0, got {baseline}")
-    if frame_rate <= 0:
-        raise InputError(f"{path}: 'frame_rate' must be > 0, got {frame_rate}")
-    if exposure < 0:
-        raise InputError(f"{path}: 'exposure' must be >= 0, got {exposure}")
-    if color not in COLORS:
-        raise InputError(f"{path}: 'color' must be 'linear' or 'srgb', got {_short(color)}")
-    try:
-        camera = StereoCamera(np.array(K), baseline)
-    except ValueError as exc:
-        raise InputError(f"{path}: {exc}") from None
-    try:
-        timing = Exposure(frame_rate, exposure)
-    except ValueError as exc:
-        raise InputError(f"{path}: {exc}") from None
-    return CameraInfo(camera, timing, color)
-
-
-def _camera_json(info: CameraInfo) -> str:
-    data = {
-        "format": FORMAT,
-        "K": [[float(v) for v in row] for row in info.camera.K],
-        "baseline": float(info.camera.baseline),
-        "frame_rate": float(info.exposure.frame_rate),
-        "exposure": float(info.exposure.exposure),
-        "color": info.color,
-    }
-    return json.dumps(data, indent=2) + "\n"
-
-
-def write_camera(path: str | os.PathLike, info: CameraInfo) -> Path:
-    """Write ``info`` to ``camera.json`` at ``path`` (atomically)."""
-    if not isinstance(info, CameraInfo):
-        raise InputError(f"info must be a CameraInfo, got {type(info).__name__}")
-    return _atomic_write(path, _camera_json(info).encode("utf-8"))
+# Smallest frame side of a clip: the dense optical flow (OpenCV DIS) needs 12 pixels,
+# the census transform a 7x7 window; 16 leaves a margin for the image pyramid.
+MIN_FRAME_SIZE = 16
 
 
 # --------------------------------------------------------------------------- paths
@@ -294,6 +180,7 @@ class Scene:
             raise InputError(f"a scene needs at least two frames, found {left} in {root}")
         self.num_frames = left
         first = read_png_header(self.frame_path("left", 0))
+        check_frame_size(first.width, first.height, self.frame_path("left", 0))
         for view in VIEWS:
             for index in range(self.num_frames):
                 path = self.frame_path(view, index)
@@ -303,6 +190,7 @@ class Scene:
                         f"{path} is {_describe(header)}, expected {_describe(first)} "
                         f"like {self.frame_path('left', 0)}"
                     )
+        check_intrinsics(self.info.camera.K, (first.width, first.height), root / "camera.json")
         self._format = first
         self.shape = (first.height, first.width)
         self.channels = first.channels
@@ -392,6 +280,15 @@ class Scene:
                 f"{path} has shape {array.shape}, expected {what} of shape {tuple(expected)} "
                 f"like the scene's frames"
             )
+
+
+def check_frame_size(width: int, height: int, where) -> None:
+    """Fail unless frames of ``width x height`` are large enough to deblur (``MIN_FRAME_SIZE``)."""
+    if min(width, height) < MIN_FRAME_SIZE:
+        raise InputError(
+            f"{where} is {width}x{height}: frames must be at least "
+            f"{MIN_FRAME_SIZE}x{MIN_FRAME_SIZE} pixels"
+        )
 
 
 def _describe(info: PngInfo) -> str:

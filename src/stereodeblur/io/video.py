@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import InputError
 from .calibration import check_image_size, read_stereo_calibration
 from .frame_source import FrameSource, camera_info
+from .scene import check_frame_size
 
 CACHE_FRAMES = 4  # decoded frames kept per view
 
@@ -262,6 +263,7 @@ def open_video_pair(
         raise InputError(
             f"{left} has {rates[0]:.6g} frames per second but {right} has {rates[1]:.6g}"
         )
+    check_frame_size(*probes["left"]["size"], left)
     check_image_size(calibration, probes["left"]["size"], f"video {left}")
     warnings = []
     counts = probes["left"]["count"], probes["right"]["count"]
