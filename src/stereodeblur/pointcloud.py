@@ -26,7 +26,6 @@ comments (``comment K fx s cx 0 fy cy 0 0 1``, ``comment size W H``).
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -370,15 +369,3 @@ def _fill_gaps(depth: np.ndarray, index: np.ndarray) -> None:
 def point_cloud_path(root: str | os.PathLike, view: str, index: int) -> Path:
     """Where ``--point-cloud`` puts the cloud of frame ``index`` of ``view``."""
     return Path(root) / "pointcloud" / view / f"{int(index):06d}.ply"
-
-
-def parse_vector(text: str, name: str) -> np.ndarray:
-    """``'0.1,0,0'`` -> array of three floats (for command-line options)."""
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    try:
-        values = np.array([float(p) for p in parts])
-    except ValueError:
-        values = np.array([])
-    if values.shape != (3,) or not np.all(np.isfinite(values)):
-        raise InputError(f"{name} must be three numbers like 0.1,0,0, got {text!r}")
-    return values

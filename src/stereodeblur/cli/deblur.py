@@ -62,6 +62,11 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
+def views_of(args: argparse.Namespace) -> tuple[str, ...]:
+    """The views ``--views`` selects."""
+    return VIEWS[args.views]
+
+
 def select_frames(text: str | None, num_frames: int):
     """``--frames`` checked against the clip (before the selection is expanded)."""
     from ..clip.frames import parse_frames
@@ -73,13 +78,16 @@ def select_frames(text: str | None, num_frames: int):
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..io.outputs import check_output
     from .motion_check import check_gt_motion
 
     settings = settings_from_arguments(args)
     spec = source_spec(args)
     source = open_source(spec)
+    written = [*views_of(args), *(["pointcloud"] if args.point_cloud else [])]
+    check_output(args.output, input_paths(spec), subfolders=written, command="deblur")
     frames = None if args.frames is None else select_frames(args.frames, source.num_frames)
-    views = VIEWS[args.views]
+    views = views_of(args)
     if settings.motion_source == "gt":
         check_gt_motion(source, range(source.num_frames) if frames is None else frames, settings)
     if args.sceneflow:
@@ -136,12 +144,7 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
             f"{args.sceneflow}: scene flow of size {sceneflow.shape}, "
             f"frames are {tuple(source.shape)}"
         )
-    check_output(
-        args.output,
-        [*input_paths(spec), args.sceneflow],
-        subfolders=views,
-        command="deblur",
-    )
+    check_output(args.output, [args.sceneflow], command="deblur")
     neighbour = neighbour_of(index, source.num_frames)
     progress = progress_printer(args.quiet)
     writer = SceneWriter(args.output, source.info, overwrite=args.overwrite, protect=[source.root])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .base import Parser, add_quiet, integer, names, size
+from .base import Parser, add_quiet, names, size
 from .printer import progress_printer
 from .sources import add_source_options, input_paths, open_source, source_spec
 
@@ -57,12 +57,8 @@ def _add_average(synth) -> None:
         "source", nargs="+", help="sharp clip: scene or KITTI folder, or two videos LEFT RIGHT"
     )
     q.add_argument("output", help="output scene folder")
-    q.add_argument(
-        "--window", type=int, required=True, help="frames per blurred frame (odd)"
-    )
-    q.add_argument(
-        "--stride", type=int, help="source frames between blurred frames (default: K)"
-    )
+    q.add_argument("--window", type=int, required=True, help="frames per blurred frame (odd)")
+    q.add_argument("--stride", type=int, help="source frames between blurred frames (default: K)")
     q.add_argument("--overwrite", action="store_true", help="allow writing into another scene")
     add_quiet(q)
     add_source_options(q)

@@ -1,0 +1,65 @@
+"""DeblurSettings <-> options in one place: round trips, defaults and limits."""
+
+import pytest
+
+from stereodeblur.cli import build_parser
+from stereodeblur.cli.settings_options import arguments_for, settings_from_arguments
+from stereodeblur.evaluation.paper_columns import COLUMNS, MASKED_COLUMNS, TRUE_MOTION
+from stereodeblur.settings import DeblurSettings
+from tests.cli.refusals import refused, tree_checksums
+
+
+def _parse(*options):
+    return settings_from_arguments(build_parser().parse_args(["deblur", "s", "-o", "o", *options]))
+
+
+def test_no_options_give_the_default_settings():
+    assert _parse() == DeblurSettings()
+
+
+@pytest.mark.parametrize("column", COLUMNS + MASKED_COLUMNS + (TRUE_MOTION,), ids=lambda c: c.key)
+def test_every_bench_column_is_reachable_from_the_command_line(column):
+    settings = column.settings(DeblurSettings(num_samples=16, num_irls=3, num_cg=7))
+    assert _parse(*arguments_for(settings)) == settings
+
+
+def test_bench_paper_takes_the_same_options():
+    args = build_parser().parse_args(["bench", "paper", "--samples", "9", "--irls", "3"])
+    settings = settings_from_arguments(args)
+    assert (settings.num_samples, settings.num_irls) == (9, 3)
+    assert settings.num_cg == DeblurSettings().num_cg
+
+
+@pytest.mark.parametrize(
+    "option, value, fragments",
+    [
+        ("--samples", "1", ["--samples", "2..1000", "1"]),
+        ("--samples", "100000", ["--samples", "2..1000", "100000"]),
+        ("--irls", "0", ["--irls", "1..1000"]),
+        ("--cg", "0", ["--cg", "1..1000"]),
+        ("--alpha", "1e300", ["--alpha", "(0, 1]", "1e300"]),
+        ("--alpha", "0", ["--alpha", "(0, 1]"]),
+        ("--alpha", "nan", ["--alpha", "(0, 1]"]),
+        ("--segments", "0", ["--segments", "1..100000"]),
+        ("--workers", "0", ["--workers", "1..1024"]),
+        ("--exposure", "-1", ["--exposure", "> 0"]),
+    ],
+)
+def test_option_limits_are_checked_before_the_run(tiny_scene, tmp_path, capsys, option, value,
+                                                  fragments):  # fmt: skip
+    out = tmp_path / "out"
+    argv = ["deblur", tiny_scene, "-o", out, "--motion-source", "gt", option, value]
+    refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=fragments)
+
+
+def test_huge_frame_range_is_refused_without_expanding_it(tiny_scene, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["deblur", tiny_scene, "-o", out, "--frames", "0:100000000000"]
+    refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=["--frames", "0:3"])
+
+
+def test_checksums_see_a_changed_byte(tiny_scene):
+    before = tree_checksums(tiny_scene)
+    path = tiny_scene / "camera.json"
+    path.write_bytes(path.read_bytes() + b" ")
+    assert tree_checksums(tiny_scene) != before
