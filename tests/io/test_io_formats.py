@@ -116,8 +116,21 @@ def test_png_bad_inputs_name_the_file(tmp_path):
     truncated = tmp_path / "truncated.png"
     truncated.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
     assert read_png_header(truncated) == PngInfo(50, 40, 16, 3)
-    with pytest.raises(InputError, match="cannot decode.*truncated.png"):
+    with pytest.raises(InputError, match="truncated PNG file .*truncated.png: chunk b'IDAT'"):
         read_png(truncated)
+    # Complete chunks, corrupt compressed data: OpenCV fails, quietly, and we say so.
+    data = good.read_bytes()
+    start = data.index(b"IDAT") + 4
+    (tmp_path / "scrambled.png").write_bytes(data[:start] + bytes(200) + data[start + 200 :])
+    with pytest.raises(InputError, match="cannot decode PNG file .*scrambled.png"):
+        read_png(tmp_path / "scrambled.png")
+    # A header declaring far more pixels than the data can hold: refused before decoding.
+    big = bytearray(data)
+    big[16:24] = (4000).to_bytes(4, "big") + (3000).to_bytes(4, "big")
+    big[29:33] = zlib.crc32(bytes(big[12:29])).to_bytes(4, "big")
+    (tmp_path / "big.png").write_bytes(bytes(big))
+    with pytest.raises(InputError, match="image data cannot hold 4000x3000 pixels"):
+        read_png(tmp_path / "big.png")
     # Corrupt IHDR checksum.
     data = bytearray(good.read_bytes())
     data[20] ^= 0xFF

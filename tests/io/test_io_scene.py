@@ -320,4 +320,4 @@ def test_unreadable_png(tmp_path):
     good = (tmp_path / "s" / "left" / "000000.png").read_bytes()
     path.write_bytes(good[: len(good) // 2])
     scene = open_scene(tmp_path / "s")
-    _raises(InputError, "cannot decode PNG file .*left/000001.png", scene.read_frame, "left", 1)
+    _raises(InputError, "truncated PNG file .*left/000001.png", scene.read_frame, "left", 1)

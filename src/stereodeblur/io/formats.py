@@ -15,12 +15,15 @@ half-written file. Bad files raise :class:`~stereodeblur.errors.InputError` (or
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import secrets
 import struct
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 import cv2
 import numpy as np
@@ -33,6 +36,9 @@ FLO_MAGIC = 202021.25
 # limits (2**30 pixels, 2**20 per side), so the error names the file.
 MAX_PIXELS = 2**28
 MAX_SIDE = 2**20
+# Samples per pixel of each PNG colour type, and the most deflate can compress.
+_PNG_SAMPLES = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}
+_DEFLATE_MAX_RATIO = 1032
 # Allowed PNG bit depths per colour type, and channels after dropping alpha.
 _PNG_COLOR_TYPES = {
     0: ((1, 2, 4, 8, 16), 1),  # grey
@@ -133,11 +139,78 @@ def read_png_header(path: str | os.PathLike) -> PngInfo:
     return _parse_ihdr(head, path)[0]
 
 
+def png_data_length(handle: BinaryIO, size: int, path) -> int:
+    """Walk a PNG's chunks by their lengths (no decoding); the total IDAT bytes.
+
+    ``handle`` is positioned at the start of the file, which has ``size`` bytes.
+    Raises :class:`InputError` naming ``path`` when the file is truncated, has no
+    image data or no end chunk.
+    """
+    if handle.read(8) != PNG_SIGNATURE:
+        raise InputError(f"not a PNG file: {path}")
+    position, data_length = 8, 0
+    while True:
+        head = handle.read(8)
+        if len(head) < 8:
+            what = "no image data (IDAT)" if not data_length else "no end chunk (IEND)"
+            raise InputError(f"truncated PNG file {path}: {what} in its {size} bytes")
+        length, kind = struct.unpack(">I4s", head)
+        end = position + 12 + length
+        if length >= 2**31 or end > size:
+            raise InputError(
+                f"truncated PNG file {path}: chunk {kind!r} at byte {position} needs "
+                f"{12 + length} bytes, the file has {size - position} left"
+            )
+        if kind == b"IDAT":
+            data_length += length
+        elif kind == b"IEND":
+            if not data_length:
+                raise InputError(f"corrupt PNG file {path}: no image data (IDAT)")
+            return data_length
+        handle.seek(end)
+        position = end
+
+
+@contextlib.contextmanager
+def quiet_stderr():
+    """Keep C libraries' messages (OpenCV, libpng, FFmpeg) off the terminal (fd 2).
+
+    For calls whose failure the caller reports itself, in one line.
+    """
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        saved = os.dup(2)
+    except OSError:  # no fd 2 (detached process): nothing to silence
+        saved = None
+    try:
+        if saved is not None:
+            with open(os.devnull, "wb") as null:
+                os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        if saved is not None:
+            os.dup2(saved, 2)
+            os.close(saved)
+        cv2.utils.logging.setLogLevel(level)
+
+
 def _decode_png(path) -> tuple[np.ndarray, PngInfo]:
     """Decode a PNG to its integer array, (H, W) or (H, W, 3) RGB, alpha dropped."""
     data = _read_bytes(path)
     info, color_type = _parse_ihdr(data[:33], path)
-    raw = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    # Deflate compresses at most ~1032:1: refuse image data too short for the declared
+    # size before OpenCV allocates the image.
+    samples = _PNG_SAMPLES[color_type]
+    raw_bytes = info.height * (1 + (info.width * samples * info.bit_depth + 7) // 8)
+    compressed = png_data_length(io.BytesIO(data), len(data), path)
+    if compressed * _DEFLATE_MAX_RATIO < raw_bytes:
+        raise InputError(
+            f"corrupt PNG file {path}: {compressed} bytes of image data cannot hold "
+            f"{info.width}x{info.height} pixels"
+        )
+    with quiet_stderr():
+        raw = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     if raw is None:
         raise InputError(f"cannot decode PNG file {path} (corrupt or truncated)")
     if raw.ndim == 3 and info.channels == 1:

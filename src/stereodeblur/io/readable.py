@@ -9,21 +9,17 @@ are read; a video is opened and its frame count compared with the frames needed.
 
 from __future__ import annotations
 
-import struct
+import os
 from collections.abc import Iterable
 from pathlib import Path
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS
-from .formats import PNG_SIGNATURE, read_png_header
+from .formats import png_data_length, read_png_header
 from .kitti import KittiSource
 from .protocol import StereoScene
 from .scene import Scene
 from .video import VideoSource, video_frame_count
-
-_CHUNK_HEADER = struct.Struct(">I4s")
-# The PNG specification's limit on a chunk's data length.
-_MAX_CHUNK = 2**31 - 1
 
 
 def check_png_layout(path: Path) -> None:
@@ -33,31 +29,8 @@ def check_png_layout(path: Path) -> None:
     chunks do not add up.
     """
     try:
-        size = path.stat().st_size
         with open(path, "rb") as handle:
-            if handle.read(8) != PNG_SIGNATURE:
-                raise InputError(f"not a PNG file: {path}")
-            position, seen_data = 8, False
-            while True:
-                head = handle.read(8)
-                if len(head) < 8:
-                    what = "no image data (IDAT)" if not seen_data else "no end chunk (IEND)"
-                    raise InputError(f"truncated PNG file {path}: {what} in its {size} bytes")
-                length, kind = _CHUNK_HEADER.unpack(head)
-                end = position + 12 + length
-                if length > _MAX_CHUNK or end > size:
-                    raise InputError(
-                        f"truncated PNG file {path}: chunk {kind!r} at byte {position} needs "
-                        f"{12 + length} bytes, the file has {size - position} left"
-                    )
-                if kind == b"IDAT":
-                    seen_data = True
-                elif kind == b"IEND":
-                    if not seen_data:
-                        raise InputError(f"corrupt PNG file {path}: no image data (IDAT)")
-                    return
-                handle.seek(end)
-                position = end
+            png_data_length(handle, os.fstat(handle.fileno()).st_size, path)
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
 

@@ -13,9 +13,7 @@ FFV1 (``.mkv``, ``.avi``), PNG (fourcc ``'png '``) and HuffYUV (``'HFYU'``).
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
 from collections import OrderedDict
 from pathlib import Path
 
@@ -24,6 +22,7 @@ import numpy as np
 
 from ..errors import InputError
 from .calibration import check_image_size, read_stereo_calibration
+from .formats import quiet_stderr
 from .frame_source import FrameSource, camera_info
 from .scene import check_frame_size
 
@@ -46,30 +45,6 @@ _IMAGE_SIGNATURES = {
 }
 
 
-@contextlib.contextmanager
-def _quiet():
-    """Keep OpenCV's and FFmpeg's log lines off the terminal (fd 2) while opening a video.
-
-    The caller reports problems itself, in one line.
-    """
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        saved = os.dup(2)
-    except OSError:  # no fd 2 (detached process): nothing to silence
-        saved = None
-    try:
-        if saved is not None:
-            with open(os.devnull, "wb") as null:
-                os.dup2(null.fileno(), 2)
-        yield
-    finally:
-        if saved is not None:
-            os.dup2(saved, 2)
-            os.close(saved)
-        cv2.utils.logging.setLogLevel(level)
-
-
 def _check_not_image(path: Path) -> None:
     try:
         with open(path, "rb") as handle:
@@ -86,7 +61,7 @@ def _check_not_image(path: Path) -> None:
 
 def _capture(path: Path) -> cv2.VideoCapture:
     _check_not_image(path)
-    with _quiet():
+    with quiet_stderr():
         capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
     if not capture.isOpened():
         raise InputError(
@@ -101,7 +76,7 @@ def _count_frames(capture: cv2.VideoCapture, first_read: bool) -> int:
     if math.isfinite(count) and count > 0:
         return int(count)
     count = int(first_read)
-    with _quiet():
+    with quiet_stderr():
         while capture.grab():
             count += 1
     return count
@@ -175,7 +150,7 @@ class VideoSource(FrameSource):
         if capture is None:
             capture = self._captures[view] = _capture(path)
             self._next[view] = 0
-        with _quiet():
+        with quiet_stderr():
             if self._next[view] != index:
                 capture.set(cv2.CAP_PROP_POS_FRAMES, index)
                 if int(round(capture.get(cv2.CAP_PROP_POS_FRAMES))) != index:
@@ -213,7 +188,7 @@ def _probe(path: Path) -> dict:
         raise FileNotFoundError(f"video file not found: {path}")
     capture = _capture(path)
     try:
-        with _quiet():
+        with quiet_stderr():
             ok, frame = capture.read()
         if not ok or frame is None:
             raise InputError(f"{path} is not a readable video: cannot decode its first frame")
