@@ -5,10 +5,14 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .progress import ProgressCallback, report
+
+if TYPE_CHECKING:
+    from .settings import DeblurSettings
 
 DEMO_SCENE = "yaw"
 DEMO_FRAME = 1
@@ -20,7 +24,7 @@ class DemoResult:
 
     scene: str
     size: tuple[int, int]
-    settings: object
+    settings: DeblurSettings
     psnr_blurred: float
     psnr_deblurred: float
     picture: Path
@@ -40,7 +44,7 @@ def run_demo(
     output: str | os.PathLike,
     *,
     size: tuple[int, int] = (320, 240),
-    settings=None,
+    settings: DeblurSettings | None = None,
     progress: ProgressCallback | None = None,
 ) -> DemoResult:
     """Render the demo scene, deblur frame 1 of its left view, write the comparison picture.

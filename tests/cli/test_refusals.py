@@ -132,3 +132,21 @@ def test_render_view_onto_its_cloud_is_refused(tmp_path, capsys):
 def test_bench_work_folder_that_is_a_scene_is_refused(tiny_scene, capsys, command):
     argv = ["bench", command, "--work", tiny_scene]
     refused(capsys, argv, inputs=[tiny_scene], fragments=["another scene"])
+
+
+def test_deblur_output_whose_left_folder_links_into_the_input_is_refused(tmp_path, capsys):
+    scene = write_tiny_scene(tmp_path / "scene")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "left").symlink_to(scene / "left")
+    argv = ["deblur", scene, "-o", out, "--frames", "1", "--motion-source", "gt", "--overwrite"]
+    refused(capsys, [*argv, "-q"], inputs=[scene], fragments=["out", "input"])
+    assert sorted(p.name for p in out.iterdir()) == ["left"]
+
+
+def test_output_through_a_dangling_symlink_is_refused(tiny_scene, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.symlink_to(tmp_path / "nowhere")
+    argv = ["sceneflow", tiny_scene, "--frame", "1", "-o", out]
+    refused(capsys, argv, inputs=[tiny_scene], fragments=["out", "does not exist"])
+    assert not (tmp_path / "nowhere").exists()

@@ -5,10 +5,19 @@ from __future__ import annotations
 import sys
 
 from ..errors import InputError
-from . import bench, deblur, demo, kernels, render_view, sceneflow, synth
 from .base import EXIT_INTERRUPTED, EXIT_USAGE, Parser
+from .bench import add_parser as add_bench
+from .deblur import add_parser as add_deblur
+from .demo import add_parser as add_demo
+from .kernels import add_parser as add_kernels
+from .render_view import add_parser as add_render_view
+from .sceneflow import add_parser as add_sceneflow
+from .synth import add_parser as add_synth
 
-COMMANDS = (deblur, sceneflow, demo, synth, render_view, kernels, bench)
+# Each adds its command's parser (and the function that runs it) to the subparsers.
+COMMANDS = (
+    add_deblur, add_sceneflow, add_demo, add_synth, add_render_view, add_kernels, add_bench
+)  # fmt: skip
 # Errors that mean "the input is not what was expected": one line, exit code 2.
 INPUT_ERRORS = (InputError, FileNotFoundError, NotADirectoryError, IsADirectoryError)
 
@@ -22,8 +31,8 @@ def build_parser() -> Parser:
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for command in COMMANDS:
-        command.add_parser(sub)
+    for add_parser in COMMANDS:
+        add_parser(sub)
     return parser
 
 

@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         scene.info.camera,
         num_segments=args.segments,
         exposure=scene.info.exposure,
-        progress=_stage_fraction(progress),
+        progress=progress,
         debug_dir=args.debug_dir,
     )
     written = write_sceneflow_outputs(args.output, estimate.sceneflow, index)
@@ -64,14 +64,3 @@ def run(args: argparse.Namespace) -> int:
     for path in written.values():
         print(f"  {path}")
     return 0
-
-
-def _stage_fraction(progress):
-    """The estimator's ``(stage, fraction)`` reports as :class:`~stereodeblur.progress.Progress`."""
-    from ..progress import report
-
-    if progress is None:
-        return None
-    return lambda stage, fraction: report(
-        progress, f"scene flow: {stage}", round(100 * fraction), 100
-    )
