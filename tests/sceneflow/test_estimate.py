@@ -4,7 +4,9 @@ from scipy import ndimage
 
 from stereodeblur.errors import InputError
 from stereodeblur.geometry import se3_exp, so3_log
+from stereodeblur.progress import Progress
 from stereodeblur.sceneflow import SceneFlowEstimate, SceneFlowWarning, estimate_scene_flow
+from stereodeblur.sceneflow.settings import SceneFlowSettings
 
 from .scenes import CAMERA, SIZE, frames, render_views
 
@@ -102,12 +104,28 @@ def test_bad_input_is_rejected():
     image = np.zeros(SIZE, np.float32)
     with pytest.raises(InputError, match="right_t"):
         estimate_scene_flow(image, np.zeros((10, 10)), image, image, CAMERA)
-    with pytest.raises(InputError, match="left_t1"):
+    with pytest.raises(InputError, match="left_next"):
         estimate_scene_flow(image, image, np.full(SIZE, np.nan), image, CAMERA)
     with pytest.raises(InputError, match="camera"):
         estimate_scene_flow(image, image, image, image, "camera")
     with pytest.raises(InputError, match="num_segments"):
         estimate_scene_flow(image, image, image, image, CAMERA, num_segments=0)
+    with pytest.raises(InputError, match="settings"):
+        estimate_scene_flow(image, image, image, image, CAMERA, settings={"smoothness": 1.0})
+
+
+def test_settings_reach_the_stages():
+    tex = _texture((SIZE[0], SIZE[1] + 20), 5)
+    frames = tex[:, 10 : 10 + SIZE[1]], tex[:, 13 : 13 + SIZE[1]]
+    frames += tex[:, 12 : 12 + SIZE[1]], tex[:, 15 : 15 + SIZE[1]]
+    few = estimate_scene_flow(*frames, CAMERA, settings=SceneFlowSettings(num_segments=12))
+    many = estimate_scene_flow(*frames, CAMERA, settings=SceneFlowSettings(num_segments=60))
+    assert len(np.unique(few.sceneflow.labels)) < len(np.unique(many.sceneflow.labels))
+    # The keyword overrides the settings' count.
+    same = estimate_scene_flow(
+        *frames, CAMERA, settings=SceneFlowSettings(num_segments=60), num_segments=12
+    )
+    assert np.array_equal(same.sceneflow.labels, few.sceneflow.labels)
 
 
 def test_progress_and_debug_pictures(tmp_path):
@@ -123,10 +141,12 @@ def test_progress_and_debug_pictures(tmp_path):
         left1,
         right1,
         CAMERA,
-        progress=lambda s, f: calls.append(f),
+        progress=calls.append,
         debug_dir=tmp_path,
     )
-    assert calls == sorted(calls) and calls[-1] == 1.0
+    assert all(isinstance(p, Progress) and p.stage.startswith("scene flow: ") for p in calls)
+    assert [p.done for p in calls] == list(range(1, len(calls) + 1))
+    assert calls[-1].done == calls[-1].total == 8
     for name in ("segments", "disparity", "flow", "occlusion", "initial_flow"):
         picture = read_png(tmp_path / f"{name}.png")
         assert picture.shape == SIZE + (3,)

@@ -10,6 +10,8 @@ found no consistent match; flow is ``(u, v)`` along x and y.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -138,3 +140,44 @@ def initial_disparity(
     x = np.arange(width, dtype=np.float32)[None, :]
     disparity[x - disparity < -0.5] = np.nan
     return disparity
+
+
+@dataclass(frozen=True)
+class InitialMatches:
+    """The correspondences the scene flow starts from (stage 2).
+
+    Attributes
+    ----------
+    disparity, disparity_next : ndarray, (H, W) float32
+        Semi-global matching disparity at t and at t + 1 (in frame t + 1's pixels), NaN in
+        holes.
+    flow : ndarray, (H, W, 2) float32
+        DIS optical flow of the left view, t -> t + 1 (the paper's "initial optical flow").
+    flow_back : ndarray, (H, W, 2) float32
+        DIS flow t + 1 -> t at half resolution, for the occlusion check only.
+    messages : tuple of str
+        Problems found (stereo matching found next to nothing).
+    """
+
+    disparity: np.ndarray
+    disparity_next: np.ndarray
+    flow: np.ndarray
+    flow_back: np.ndarray
+    messages: tuple[str, ...] = ()
+
+
+def initial_matches(u8: tuple[np.ndarray, ...]) -> InitialMatches:
+    """Disparities at t and t + 1 and the left view's flow both ways, from the four 8-bit
+    frames (left t, right t, left t + 1, right t + 1)."""
+    disparity = initial_disparity(u8[0], u8[1])
+    disparity_next = initial_disparity(u8[2], u8[3])
+    flow = initial_optical_flow(u8[0], u8[2])
+    flow_back = initial_optical_flow(u8[2], u8[0], finest_scale=1)
+    messages = ()
+    valid_fraction = float(np.mean(np.isfinite(disparity)))
+    if valid_fraction < 0.05:
+        messages = (
+            f"stereo matching found a disparity for only {100 * valid_fraction:.1f}% of the "
+            "pixels at frame t",
+        )
+    return InitialMatches(disparity, disparity_next, flow, flow_back, messages)

@@ -92,6 +92,7 @@ def occlusion_masks(
     backward_flow: np.ndarray | None = None,
     initial_flow: np.ndarray | None = None,
     depth_margin: float = 0.5,
+    boundary_jump: float = 0.5,
 ) -> OcclusionMasks:
     """Occlusion masks of a scene flow given by its dense disparity, flow and disparity at t + 1.
 
@@ -109,6 +110,9 @@ def occlusion_masks(
         never marked inconsistent.
     depth_margin : float
         Disparity margin of the z-buffer tests, pixels.
+    boundary_jump : float
+        Flow jump (pixels) across a segment border that starts a motion-boundary band
+        (:func:`motion_boundary_band`).
     """
     height, width = labels.shape
     y, x = np.mgrid[0:height, 0:width].astype(np.float64)
@@ -134,7 +138,7 @@ def occlusion_masks(
             agree = np.linalg.norm(flow - initial_flow, axis=-1) <= np.maximum(1.0, 0.05 * mag)
             bad &= ~agree
         inconsistent = bad & ~out_of_view
-    boundary = motion_boundary_band(labels, flow)
+    boundary = motion_boundary_band(labels, flow, threshold=boundary_jump)
     return OcclusionMasks(
         out_of_view=out_of_view,
         occluded=occluded,

@@ -1,0 +1,104 @@
+"""The four frames as the scene-flow stages use them: grey, one common gain, census codes.
+
+Stage 1 of :func:`~stereodeblur.sceneflow.estimate.estimate_scene_flow`. The frames
+are left t, right t, left t + 1, right t + 1 (this order everywhere), float in [0, 1],
+grey or RGB.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .census import census_descriptors
+from .initial import to_gray, to_gray_u8
+from .settings import SceneFlowSettings
+
+__all__ = ["PreparedFrames", "prepare_frames"]
+
+MIN_CONTRAST = 2.0 / 255.0  # grey-level std below which a frame counts as textureless
+
+
+@dataclass(frozen=True)
+class PreparedFrames:
+    """The four frames in the forms the stages need.
+
+    Attributes
+    ----------
+    grays : tuple of 4 ndarray, (H, W) float32
+        Grey frames as given.
+    gain : float
+        Common gain that takes the brightest of them to the full range.
+    normed : tuple of 4 ndarray, (H, W) float32
+        ``grays * gain`` clipped to [0, 1].
+    u8 : tuple of 4 ndarray, (H, W) uint8
+        8-bit versions of ``normed`` for OpenCV.
+    codes : tuple of 4 ndarray
+        Census descriptors (:func:`census.census_descriptors`).
+    segment_image : ndarray, (H, W) or (H, W, 3) float64
+        The left frame at t for the superpixels (colour if given, with the gain).
+    contrast_ok : bool
+        Whether every frame has some texture.
+    messages : tuple of str
+        Problems with the input (textureless, identical frames or views).
+    """
+
+    grays: tuple[np.ndarray, ...]
+    gain: float
+    normed: tuple[np.ndarray, ...]
+    u8: tuple[np.ndarray, ...]
+    codes: tuple[np.ndarray, ...]
+    segment_image: np.ndarray
+    contrast_ok: bool
+    messages: tuple[str, ...]
+
+
+def prepare_frames(images, settings: SceneFlowSettings) -> PreparedFrames:
+    """Grey frames with a common gain (dark inputs use the full 8-bit range) and census codes.
+
+    Census "similar" bands are relative to the brightness (dark texture counts) and above
+    the sensor noise (estimated on each frame); noisy frames are smoothed first.
+    """
+    grays = [to_gray(np.asarray(im, dtype=np.float32)) for im in images]
+    top = max(float(np.percentile(g, 99.5)) for g in grays)
+    gain = 1.0 / top if top > 1e-3 else 1.0
+    gain = min(gain, settings.max_gain)
+    u8 = [to_gray_u8(g, scale=gain) for g in grays]
+    normed = [np.clip(g * np.float32(gain), 0.0, 1.0) for g in grays]
+    codes = tuple(
+        census_descriptors(
+            g,
+            threshold=settings.census_threshold,
+            noise_factor=settings.census_noise_factor,
+            denoise=settings.census_denoise,
+        )
+        for g in normed
+    )
+    messages = []
+    contrast = [float(np.std(g)) for g in normed]
+    contrast_ok = min(contrast) >= MIN_CONTRAST
+    if not contrast_ok:
+        messages.append(
+            "input frames are (nearly) textureless (grey-level std "
+            f"{min(contrast) * 255:.2f}/255): planes and motions are guesses"
+        )
+    if np.array_equal(u8[0], u8[2]) and np.array_equal(u8[1], u8[3]):
+        messages.append("frames t and t+1 are identical: the estimated motion is zero")
+    if np.array_equal(u8[0], u8[1]):
+        messages.append("left and right views are identical: zero disparity, depth unknown")
+    segment_image = np.asarray(images[0], dtype=np.float64)
+    if segment_image.ndim == 3 and segment_image.shape[2] == 3:
+        segment_image = np.clip(segment_image * gain, 0, 1)
+    else:
+        segment_image = normed[0].astype(np.float64)
+    return PreparedFrames(
+        grays=tuple(grays),
+        gain=float(gain),
+        normed=tuple(normed),
+        u8=tuple(u8),
+        codes=codes,
+        segment_image=segment_image,
+        contrast_ok=contrast_ok,
+        messages=tuple(messages),
+    )
