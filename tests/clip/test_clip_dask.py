@@ -82,7 +82,7 @@ def test_killing_a_worker_mid_run_still_completes_every_frame(
 
 
 def test_unreachable_scheduler_is_a_one_line_error(clip_scene, tmp_path, monkeypatch):
-    import stereodeblur.clip as clip
+    import stereodeblur.clip.executors as clip
 
     monkeypatch.setattr(clip, "DASK_CONNECT_TIMEOUT", 1.0)
     out = tmp_path / "out"

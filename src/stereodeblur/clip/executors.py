@@ -1,0 +1,230 @@
+"""Where the tasks of a clip run: this process, a local process pool, or a Dask cluster.
+
+Every executor offers ``run(job, tasks)``, an iterator of
+:class:`~stereodeblur.clip.job.FrameRecord` in the order the views finish. Closing the
+iterator (or an exception in the consumer) stops the executor's work at once: frames in
+flight are lost, finished frames stay.
+
+``SerialExecutor`` runs the tasks here. ``PoolExecutor(workers)`` runs them in spawned worker
+processes, each with ``cores // workers`` numba and OpenCV threads; the workers watch this
+process and end with it (:func:`~stereodeblur.clip.worker.watch_parent`); a worker that dies
+(killed, out of memory) has its tasks run again in a new pool. ``DaskExecutor(address)``
+sends them to an existing Dask distributed cluster, whose workers open the input and write
+the output themselves (both paths must be the same on every worker: a shared file system);
+Dask runs a task again on another worker when its worker dies.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import uuid
+from collections.abc import Iterator, Sequence
+from typing import Protocol
+
+from ..errors import InputError
+from .job import ClipJob, FrameRecord, Task
+from .worker import cores, init_worker, process_task
+
+MAX_POOL_RESTARTS = 2
+DASK_CONNECT_TIMEOUT = 30.0
+DASK_RETRIES = 2
+# Peak memory of a worker deblurring one 640x480 RGB frame with the paper's 70 samples (about
+# 0.6 GB measured, with margin); scaled with pixels and samples for other sizes.
+FRAME_MEMORY_640x480 = 0.8e9
+
+
+class Executor(Protocol):
+    """Runs the tasks of a clip job and yields a record per view as it finishes."""
+
+    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]: ...
+
+
+def _available_memory() -> float | None:
+    try:
+        with open("/proc/meminfo") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:  # pragma: no cover - not Linux
+        pass
+    return None
+
+
+def default_workers(shape, *, num_samples: int = 70, num_tasks: int | None = None) -> int:
+    """Worker processes for a local run: one per core, as many as memory allows.
+
+    Each worker gets ``cores // workers`` numba threads, so the cores are busy
+    either way; separate processes also overlap the serial parts of a frame.
+    """
+    height, width = shape
+    per_frame = FRAME_MEMORY_640x480 * (height * width / (640 * 480)) * (num_samples / 70)
+    per_frame = max(per_frame, 2e8)
+    workers = cores()
+    memory = _available_memory()
+    if memory is not None:
+        workers = min(workers, int(0.8 * memory // per_frame))
+    if num_tasks is not None:
+        workers = min(workers, num_tasks)
+    return max(1, workers)
+
+
+class SerialExecutor:
+    """Every task in this process, one after the other."""
+
+    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]:
+        for index, views in tasks:
+            yield from process_task(job, index, views)
+
+
+def _terminate(pool) -> None:
+    """Stop a process pool now: cancel what waits, end the workers (frames in flight are lost)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+    for process in processes:
+        process.join(timeout=10)
+        if process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
+            process.kill()
+            process.join(timeout=5)
+
+
+class PoolExecutor:
+    """Tasks in ``workers`` spawned local processes that end when this process ends."""
+
+    def __init__(self, workers: int):
+        if isinstance(workers, bool) or int(workers) < 1:
+            raise InputError(f"workers must be at least 1, got {workers}")
+        self.workers = int(workers)
+
+    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]:
+        remaining = list(tasks)
+        for attempt in range(MAX_POOL_RESTARTS + 1):
+            if not remaining:
+                return
+            broken: list[Task] = []
+            yield from self._one_pool(job, remaining, broken)
+            remaining = sorted(broken)
+            if remaining and attempt == MAX_POOL_RESTARTS:
+                for index, views in remaining:
+                    for view in views:
+                        yield FrameRecord(
+                            index,
+                            view,
+                            "failed",
+                            error="a worker process died (killed or out of memory)",
+                        )
+
+    def _one_pool(self, job, tasks, broken: list) -> Iterator[FrameRecord]:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures.process import BrokenProcessPool
+
+        threads = max(1, cores() // self.workers)
+        pool = ProcessPoolExecutor(
+            max_workers=max(1, min(self.workers, len(tasks))),
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=init_worker,
+            initargs=(threads, os.getpid()),
+        )
+        try:
+            futures = {
+                pool.submit(process_task, job, index, views, threads=threads): (index, views)
+                for index, views in tasks
+            }
+            for future in as_completed(futures):
+                try:
+                    records = future.result()
+                except BrokenProcessPool:
+                    broken.append(futures[future])
+                    continue
+                yield from records
+        except BaseException:
+            _terminate(pool)
+            raise
+        pool.shutdown(wait=True)
+
+
+def _dask_client(address: str):
+    try:
+        from distributed import Client
+    except ImportError:
+        raise InputError(
+            "a Dask scheduler needs dask.distributed: pip install 'stereodeblur[dask]'"
+        ) from None
+    try:
+        return Client(address, timeout=DASK_CONNECT_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot connect to the Dask scheduler at {address}: {message}") from None
+
+
+def _host_threads(client) -> dict[str, int]:
+    try:
+        workers = client.scheduler_info(n_workers=-1)["workers"]
+    except TypeError:  # distributed before n_workers (it listed all workers then)
+        workers = client.scheduler_info()["workers"]
+    threads: dict[str, int] = {}
+    for address, info in workers.items():
+        host = address.rsplit(":", 1)[0]
+        threads[host] = threads.get(host, 0) + int(info.get("nthreads", 1))
+    return threads
+
+
+class DaskExecutor:
+    """Tasks on the Dask distributed cluster at ``address`` (``tcp://HOST:PORT``)."""
+
+    def __init__(self, address: str):
+        self.address = address
+        self.client = None
+
+    def connect(self) -> None:
+        """Connect now (an InputError when the scheduler cannot be reached)."""
+        if self.client is None:
+            self.client = _dask_client(self.address)
+
+    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]:
+        from distributed import as_completed
+
+        self.connect()
+        client, futures = self.client, []
+        try:
+            host_threads = _host_threads(client)
+            token = uuid.uuid4().hex[:8]
+            for index, views in tasks:
+                key = f"stereodeblur-{token}-{index:06d}-{'-'.join(views)}"
+                futures.append(
+                    client.submit(
+                        process_task,
+                        *(job, index, views),
+                        host_threads=host_threads,
+                        capture=False,  # worker threads share the standard error
+                        key=key,
+                        pure=False,
+                        retries=DASK_RETRIES,
+                    )
+                )
+            keys = {future.key: task for future, task in zip(futures, tasks, strict=True)}
+            for future in as_completed(futures, loop=client.loop):
+                try:
+                    yield from future.result()
+                except Exception as exc:  # e.g. KilledWorker: the task killed workers repeatedly
+                    index, views = keys[future.key]
+                    error = f"{type(exc).__name__}: {str(exc)[:200]}"
+                    yield from (FrameRecord(index, v, "failed", error=error) for v in views)
+        finally:
+            for future in futures:
+                if not future.done():
+                    future.cancel()
+            client.close()
+            self.client = None
+
+
+def make_executor(workers: int | None, scheduler: str | None) -> Executor:
+    """The executor for ``workers`` local processes (1: this process) or a Dask ``scheduler``."""
+    if scheduler is not None:
+        return DaskExecutor(scheduler)
+    if workers is None or workers == 1:
+        return SerialExecutor()
+    return PoolExecutor(workers)

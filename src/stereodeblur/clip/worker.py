@@ -1,0 +1,249 @@
+"""One task of a clip run, as a worker runs it: deblur a frame's views and write them.
+
+A worker process watches its parent: on Linux the kernel kills it when the parent dies
+(``PR_SET_PDEATHSIG``), and on every system a thread polls ``os.getppid()`` and ends the
+worker when the parent has gone, so no worker outlives a run whose main process was killed.
+Library messages that a task prints on the standard error (OpenCV, libpng, FFmpeg) and
+Python warnings are kept off the terminal: they go into the task's records and the run log.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import signal
+import socket
+import sys
+import tempfile
+import threading
+import time
+import traceback
+import warnings
+from collections.abc import Iterator
+
+from ..errors import InputError
+from .job import ClipJob, FrameRecord
+
+PARENT_POLL_SECONDS = 0.5
+_PR_SET_PDEATHSIG = 1
+
+_OPEN: dict = {}
+
+
+# --------------------------------------------------------------------------- worker start
+
+
+def _kill_with_parent() -> None:
+    """Ask Linux to SIGKILL this process when its parent dies (nothing elsewhere)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # pragma: no cover - no prctl: the thread still watches
+        pass
+
+
+def _poll_parent(parent: int) -> None:
+    while True:
+        time.sleep(PARENT_POLL_SECONDS)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def watch_parent(parent: int) -> None:
+    """End this process as soon as process ``parent`` (its parent) is gone."""
+    _kill_with_parent()
+    if os.getppid() != parent:  # the parent died before the watch began
+        os._exit(1)
+    threading.Thread(target=_poll_parent, args=(parent,), daemon=True, name="watch-parent").start()
+
+
+def init_worker(threads: int, parent: int) -> None:
+    """Pool worker start: watch the parent, threads before numba loads; interrupts and
+    terminations are the parent's job."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    watch_parent(parent)
+    os.environ["NUMBA_NUM_THREADS"] = str(threads)
+    os.environ["OMP_NUM_THREADS"] = str(threads)
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+
+
+def _set_threads(threads: int | None) -> None:
+    if not threads:
+        return
+    import cv2
+    import numba
+
+    numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    cv2.setNumThreads(max(1, int(threads)))
+
+
+def cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _dask_threads(host_threads: dict | None) -> int | None:
+    """Threads per task on a Dask worker: the host's cores shared by its worker threads."""
+    if host_threads is None:
+        return None
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return None
+    host = worker.address.rsplit(":", 1)[0]
+    total = host_threads.get(host) or worker.state.nthreads
+    return max(1, cores() // max(1, total))
+
+
+# --------------------------------------------------------------------------- messages
+
+
+@contextlib.contextmanager
+def captured_stderr(lines: list[str]) -> Iterator[None]:
+    """Send what this process writes on file descriptor 2 into ``lines`` (one per line)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            with contextlib.suppress(Exception):
+                sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read().decode("utf-8", "replace")
+            lines.extend(line.strip() for line in text.splitlines() if line.strip())
+
+
+# --------------------------------------------------------------------------- one task
+
+
+def _open(job: ClipJob):
+    """Source and writer of ``job``, opened once per process."""
+    key = (job.source, job.output, job.run_id)
+    if key not in _OPEN:
+        from ..io.scene import SceneWriter
+
+        source = job.source.open()
+        writer = SceneWriter(job.output, source.info, overwrite=True)
+        _OPEN.clear()
+        _OPEN[key] = (source, writer)
+    return _OPEN[key]
+
+
+def deblur_clip_frame(source, index: int, view: str, settings):
+    """Deblur frame ``index`` of ``view`` (the last frame too, with ground-truth motion)."""
+    from .. import pipeline
+
+    last = index == source.num_frames - 1
+    # Until the pipeline deblurs the last frame towards the previous one itself (it then
+    # offers gt_needs), the last frame reads its ground truth backwards in time.
+    if settings.motion_source == "gt" and last and not hasattr(pipeline, "gt_needs"):
+        from .reversed import TimeReversed
+
+        result = pipeline.deblur_frame(TimeReversed(source), 0, view=view, settings=settings)
+        motion = dataclasses.replace(result.motion, index=index, neighbour=index - 1)
+        return dataclasses.replace(result, index=index, motion=motion)
+    return pipeline.deblur_frame(source, index, view=view, settings=settings)
+
+
+def _deblur_views(source, index: int, views: tuple[str, ...], job: ClipJob) -> dict:
+    """Results of ``views`` of frame ``index``: together when the job is stereo."""
+    if job.stereo and len(views) > 1:
+        from ..pipeline import deblur_stereo_frame
+
+        frames = deblur_stereo_frame(source, index, views=views, settings=job.settings).frames
+        return {view: frames[view] for view in views}
+    return {view: deblur_clip_frame(source, index, view, job.settings) for view in views}
+
+
+def _write_view(job: ClipJob, source, writer, result, view: str, index: int) -> None:
+    if job.point_cloud:
+        from ..pointcloud import frame_point_cloud, point_cloud_path, write_ply
+
+        cloud = frame_point_cloud(
+            result.motion.sceneflow, result.image, blurred=result.blurred, color=source.info.color
+        )
+        write_ply(
+            point_cloud_path(job.output, view, index),
+            cloud,
+            comments=[f"frame {index} view {view}"],
+        )
+    writer.write_frame(view, index, result.image)
+
+
+def _failed(index, views, start, messages, worker, exc) -> tuple[FrameRecord, ...]:
+    is_input = isinstance(exc, InputError | FileNotFoundError)
+    message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return tuple(
+        FrameRecord(
+            index,
+            view,
+            "failed",
+            seconds=time.perf_counter() - start,
+            warnings=tuple(dict.fromkeys(messages)),
+            worker=worker,
+            error=message if is_input else f"{type(exc).__name__}: {message}",
+            input_error=is_input,
+            details=None if is_input else traceback.format_exc(),
+        )
+        for view in views
+    )
+
+
+def process_task(
+    job: ClipJob,
+    index: int,
+    views: tuple[str, ...],
+    *,
+    threads: int | None = None,
+    host_threads=None,
+    capture: bool = True,
+) -> tuple[FrameRecord, ...]:
+    """Deblur and write ``views`` of frame ``index``; runs in a worker. Never raises for a
+    frame: a failure is a record with ``status='failed'`` per view."""
+    start = time.perf_counter()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    messages: list[str] = []
+    caught: list = []
+    stderr = captured_stderr(messages) if capture else contextlib.nullcontext()
+    try:
+        with stderr, warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _set_threads(threads or _dask_threads(host_threads))
+            source, writer = _open(job)
+            results = _deblur_views(source, index, views, job)
+            t0 = time.perf_counter()
+            for view, result in results.items():
+                _write_view(job, source, writer, result, view, index)
+            write_seconds = (time.perf_counter() - t0) / len(views)
+    except Exception as exc:  # reported in the log and the summary, not raised
+        messages += [str(w.message) for w in caught or ()]
+        return _failed(index, views, start, messages, worker, exc)
+    messages += [str(w.message) for w in caught]
+    seconds = time.perf_counter() - start
+    return tuple(
+        FrameRecord(
+            index,
+            view,
+            "done",
+            seconds=seconds,
+            timings={**result.timings, "write": write_seconds},
+            warnings=tuple(dict.fromkeys(messages)),
+            worker=worker,
+            alpha=None if result.alpha is None else float(result.alpha),
+        )
+        for view, result in results.items()
+    )

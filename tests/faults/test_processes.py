@@ -1,0 +1,85 @@
+"""Killing the main process of a multi-worker run leaves no process of the run alive, and the
+interrupted run resumes to the output of an uninterrupted one."""
+
+import json
+import signal
+import time
+
+import pytest
+
+from tests.faults.helpers import (
+    FAST,
+    run_cli,
+    same_frames,
+    start_run,
+    tagged_processes,
+    wait_until,
+)
+
+pytestmark = pytest.mark.slow
+
+
+def _kill_when_workers_are_busy(tiny_scene, out, sig):
+    """Start a 2-worker run, send ``sig`` to its main process only while both workers work."""
+    run = start_run("deblur", tiny_scene, "-o", out, "--workers", "2", "-q", *FAST)
+    process = run.process
+    try:
+        # Main process, two workers and the pool's resource tracker.
+        wait_until(lambda: len(tagged_processes(run.mark)) >= 4, 60, "the workers", process)
+        wait_until(lambda: (out / "run-log.jsonl").exists(), 60, "the run log", process)
+        process.send_signal(sig)
+        process.wait(timeout=30)
+        deadline = time.monotonic() + 5
+        while tagged_processes(run.mark) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        left = tagged_processes(run.mark)
+        assert left == [], f"processes of the run still alive after {sig!r}: {left}"
+    finally:
+        for pid in tagged_processes(run.mark):
+            import os
+
+            os.kill(pid, signal.SIGKILL)
+        if process.poll() is None:
+            process.kill()
+        process.wait(timeout=30)
+        err = process.stderr.read().decode("utf-8", "replace")
+        process.stderr.close()
+    return process.returncode, err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_killed_main_process_leaves_no_worker_and_resumes(tiny_scene, reference, tmp_path, sig):
+    out = tmp_path / "out"
+    out.mkdir()  # not created by the run: kept with its log when the run stops
+    code, err = _kill_when_workers_are_busy(tiny_scene, out, sig)
+    if sig == signal.SIGKILL:
+        assert code == -signal.SIGKILL
+    else:  # handled like Ctrl-C: a clean stop, recorded in the log
+        assert code == 130, err
+        assert "Traceback" not in err
+        events = [json.loads(line) for line in (out / "run-log.jsonl").read_text().splitlines()]
+        assert events[-1]["event"] == "interrupted" and events[-1]["reason"] == "SIGTERM"
+    result = run_cli("deblur", tiny_scene, "-o", out, "--workers", "2", "-q", *FAST)
+    assert result.code == 0, result.stderr
+    same_frames(out, reference)
+    assert not list(out.rglob("*.tmp"))
+
+
+def test_sigterm_before_the_first_frame_removes_the_folder_it_created(tiny_scene, tmp_path):
+    out = tmp_path / "out"
+    code, err = _kill_when_workers_are_busy(tiny_scene, out, signal.SIGTERM)
+    assert code == 130, err
+    assert not out.exists()
+    assert "run-log" not in err  # no pointer to a file that is gone
+
+
+def test_resuming_a_finished_output_with_workers_runs_nothing(tiny_scene, reference, tmp_path):
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(reference, out)
+    result = run_cli("deblur", tiny_scene, "-o", out, "--workers", "2", *FAST)
+    assert result.code == 0, result.stderr
+    assert "wrote 0 frame(s)" in result.stdout and "12 already done" in result.stdout
+    assert result.stderr == ""
+    same_frames(out, reference)
