@@ -108,7 +108,7 @@ def _deblur_clip(args, settings, spec, frames, views) -> int:
         point_cloud=args.point_cloud,
         workers=args.workers,
         scheduler=args.scheduler,
-        progress=not args.quiet,
+        progress=progress_printer(args.quiet) or False,
         command=["stereodeblur", *args.argv],
     )
     failed = report.failed
