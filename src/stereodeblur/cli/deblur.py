@@ -138,7 +138,10 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
             "and --motion-source sceneflow"
         )
     index = frames[0]
-    sceneflow = load_sceneflow(args.sceneflow)
+    try:
+        sceneflow = load_sceneflow(args.sceneflow)
+    except (InputError, FileNotFoundError) as err:
+        raise InputError(f"--sceneflow: {err}") from None
     if sceneflow.shape != tuple(source.shape):
         raise InputError(
             f"{args.sceneflow}: scene flow of size {sceneflow.shape}, "
