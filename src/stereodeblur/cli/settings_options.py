@@ -86,6 +86,7 @@ def _options() -> tuple[SettingOption, ...]:
             "--samples",
             f"time samples per exposure, {SAMPLES[0]}..{SAMPLES[1]} (paper: 70)",
             type=integer(*SAMPLES),
+            metavar="N",
         ),
         SettingOption(
             "alpha",
@@ -93,6 +94,7 @@ def _options() -> tuple[SettingOption, ...]:
             "prior weight in (0, 1], or 'auto': from the input's noise level (default; "
             "paper: 0.001)",
             type=alpha,
+            metavar="ALPHA",
         ),
         SettingOption(
             "boundary_mask",
@@ -105,18 +107,21 @@ def _options() -> tuple[SettingOption, ...]:
             "--irls",
             f"IRLS iterations, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 10)",
             type=integer(*ITERATIONS),
+            metavar="N",
         ),
         SettingOption(
             "num_cg",
             "--cg",
             f"CG steps per IRLS iteration, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 25)",
             type=integer(*ITERATIONS),
+            metavar="N",
         ),
         SettingOption(
             "num_segments",
             "--segments",
             "superpixels of the scene flow (default: 1200 at 640x480, scaled with area)",
             type=integer(*SEGMENTS),
+            metavar="N",
         ),
     )
 
