@@ -1,5 +1,6 @@
 """Physically rendered synthetic scenes with exact ground truth (benchmark data)."""
 
+from .family import FamilySpec, family_scene, family_setup, split, write_family_scene
 from .objects import (
     NOISE_SIGMA,
     OBJECT_SCENES,
@@ -41,16 +42,19 @@ from .render import (
     shade,
     track,
 )
-from .textures import TEXTURE_NAMES, load_texture
+from .street import street_scene
+from .textures import PHOTO_NAMES, TEXTURE_NAMES, load_texture
 
 __all__ = [
     "NOISE_SIGMA",
     "OBJECT_SCENES",
+    "PHOTO_NAMES",
     "PLANAR_MOTIONS",
     "TEXTURE_NAMES",
     "BlurredRender",
     "BoxObject",
     "Curvature",
+    "FamilySpec",
     "CylinderObject",
     "InstantRender",
     "PlanarMotion",
@@ -63,6 +67,8 @@ __all__ = [
     "cast_rays",
     "curvature_px",
     "describe_object",
+    "family_scene",
+    "family_setup",
     "intersect_plane",
     "load_texture",
     "make_object_scene",
@@ -76,9 +82,12 @@ __all__ = [
     "render_scene",
     "sample_texture",
     "shade",
+    "split",
+    "street_scene",
     "textured_plane",
     "track",
     "write_object_set",
     "write_planar_set",
+    "write_family_scene",
     "write_rendered_scene",
 ]

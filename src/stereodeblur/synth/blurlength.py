@@ -11,7 +11,7 @@ over the left view's pixels at least ``border`` pixels from the image edge, on e
 Scaling every twist by ``k`` moves each point along the same path ``k`` times as fast, so
 the path over ``[-tau / 2, tau / 2]`` at scale ``k`` is the unscaled path over
 ``[-k tau / 2, k tau / 2]``: its length grows monotonically with ``k``, and
-:func:`scale_for_blur` finds the ``k`` of a target length by bisection in ``log k``.
+:func:`scale_for_blur` finds the ``k`` of a target length.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 from ..geometry.camera import StereoCamera
 from .render import RayHits, cast_rays, track
 
-PATH_STEPS = 16
+PATH_STEPS = 12
 """Straight steps of a blur path over the exposure."""
 
 SCALE_TOLERANCE = 0.002
@@ -96,8 +96,9 @@ def scale_for_blur(
 ) -> tuple[float, float]:
     """The twist scale ``k`` whose longest blur is ``target`` pixels, and that blur.
 
-    Bisection in ``log k`` over ``[low, high]`` until the blur is within
-    :data:`SCALE_TOLERANCE` of ``target`` (relative).
+    Steps ``k <- k * target / blur`` from ``k = 1`` (the blur is nearly linear in ``k``),
+    then, if they do not settle, bisection in ``log k`` over ``[low, high]``, until the
+    blur is within :data:`SCALE_TOLERANCE` of ``target`` (relative).
 
     Raises
     ------
@@ -106,6 +107,14 @@ def scale_for_blur(
         carries points behind the camera first).
     """
     hits = _sampled_hits(objects, camera, size, border=border, stride=stride)
+    k = 1.0
+    for _ in range(8):  # fixed-point steps k <- k * target / blur: the blur is nearly linear
+        blur = _longest(objects, camera, hits, duty_cycle, k)
+        if abs(blur - target) <= SCALE_TOLERANCE * target:
+            return k, blur
+        if not (blur > 0 and low <= k * target / blur <= high):
+            break
+        k *= target / blur
     if not (
         _longest(objects, camera, hits, duty_cycle, low)
         < target

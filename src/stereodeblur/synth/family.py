@@ -192,7 +192,14 @@ class Rejected(Exception):
     """A drawn scene that breaks a rule (objects behind the camera, views not covered)."""
 
 
-def _patch_maker(texture: SurfaceTexture):
+def _blank(width, height) -> np.ndarray:
+    """A black texture of the shape :func:`make_texture` gives (geometry only)."""
+    return np.zeros((max(2, int(round(height))), max(2, int(round(width))), 3), np.float32)
+
+
+def _patch_maker(texture: SurfaceTexture, blank: bool):
+    if blank:
+        return _blank
     return lambda width, height: make_texture(texture, width, height)
 
 
@@ -200,12 +207,12 @@ def _magnification(texture: SurfaceTexture) -> float:
     return PHOTO_MAGNIFICATION if texture.kind == "photo" else PATTERN_MAGNIFICATION
 
 
-def _part_object(part: Part, fx: float, camera_twist: np.ndarray):
+def _part_object(part: Part, fx: float, camera_twist: np.ndarray, *, blank: bool = False):
     """The renderer's object of ``part`` at the centre of frame 1 (camera motion included)."""
     obj = solid_object(
         part.solid,
         fx,
-        patch=_patch_maker(part.texture),
+        patch=_patch_maker(part.texture, blank),
         magnification=_magnification(part.texture),
         texel_size=part.texel_size,
     )
@@ -228,13 +235,29 @@ def _probe_backdrop(backdrop: Backdrop, twist: np.ndarray) -> PlanarObject:
     return PlanarObject(normal, twist, np.zeros((2, 2, 3), np.float32), origin, axes, 1.0)
 
 
-def _final_backdrop(backdrop: Backdrop, camera, size, exposure, twist) -> PlanarObject:
-    """The backdrop in the reference pose, its texture covering both views all clip long."""
+def _final_backdrop(
+    backdrop: Backdrop, camera, size, exposure, twist, *, blank: bool = False
+) -> PlanarObject:
+    """The backdrop in the reference pose, its texture covering both views all clip long.
+
+    ``blank``: a 2 x 2 black texture (geometry only; still checks that it fills the views).
+    """
     back = se3_exp(-MIDDLE * twist)
     normal = move_plane(_backdrop_normal(backdrop), back[:3, :3], back[:3, 3])
     instants = _exposure_instants(exposure, NUM_FRAMES)
     texture = backdrop.texture
     magnification = _magnification(texture)
+    if blank:
+        return textured_plane(
+            _blank(2, 2),
+            camera,
+            size,
+            normal,
+            twist,
+            instants,
+            min_magnification=0.0,
+            max_magnification=math.inf,
+        )
     if texture.kind == "photo":
         from .textures import load_texture
 
@@ -260,25 +283,30 @@ def _final_backdrop(backdrop: Backdrop, camera, size, exposure, twist) -> Planar
 
 
 def middle_objects(spec_like, camera) -> list:
-    """The objects at the centre of frame 1 (backdrop with a blank texture), for measuring."""
+    """The objects at the centre of frame 1 with blank textures, for measuring."""
     camera_twist = np.asarray(spec_like.camera_twist, dtype=np.float64)
     objects = []
     if spec_like.backdrop is not None:
         objects.append(_probe_backdrop(spec_like.backdrop, -camera_twist))
-    objects += [_part_object(p, camera.fx, camera_twist) for p in spec_like.parts]
+    objects += [_part_object(p, camera.fx, camera_twist, blank=True) for p in spec_like.parts]
     return objects
 
 
-def family_setup(spec: FamilySpec) -> SceneSetup:
-    """The renderer's :class:`~stereodeblur.synth.render.SceneSetup` of ``spec``."""
+def family_setup(spec: FamilySpec, *, blank: bool = False) -> SceneSetup:
+    """The renderer's :class:`~stereodeblur.synth.render.SceneSetup` of ``spec``.
+
+    ``blank``: black textures of the same shapes (the geometry only, quickly).
+    """
     camera = planar_camera(spec.size)
     exposure = Exposure(FRAME_RATE, spec.duty_cycle / FRAME_RATE)
     camera_twist = np.asarray(spec.camera_twist, dtype=np.float64)
     objects = []
     if spec.backdrop is not None:
-        objects.append(_final_backdrop(spec.backdrop, camera, spec.size, exposure, -camera_twist))
+        objects.append(
+            _final_backdrop(spec.backdrop, camera, spec.size, exposure, -camera_twist, blank=blank)
+        )
     for part in spec.parts:
-        obj = _part_object(part, camera.fx, camera_twist)
+        obj = _part_object(part, camera.fx, camera_twist, blank=blank)
         objects.append(_moved(obj, se3_exp(-MIDDLE * obj.twist)))
     return SceneSetup(spec.name, camera, exposure, spec.size, NUM_FRAMES, tuple(objects))
 
@@ -308,7 +336,7 @@ def _check_in_front(spec: FamilySpec, camera) -> None:
 
 def _check_covered(spec: FamilySpec, camera, *, stride: int = 6) -> None:
     """Every pixel of both views sees a surface at the clip's first, middle and last instant."""
-    setup = family_setup(spec)
+    setup = family_setup(spec, blank=True)
     tau = spec.duty_cycle
     for s in (-tau / 2, MIDDLE, NUM_FRAMES - 1 + tau / 2):
         for view in ("left", "right"):
@@ -402,7 +430,7 @@ def _draw_solid(rng: np.random.Generator, depth_limit: float, index: int) -> Par
     return Part(solid, texture)
 
 
-def _draft_family(seed: int, size, rng: np.random.Generator) -> FamilySpec:
+def _draft_family(seed: int, size, rng: np.random.Generator, common: dict) -> FamilySpec:
     depth = float(rng.uniform(3.0, 9.0))
     tilt = (float(rng.uniform(-0.4, 0.4)), float(rng.uniform(-0.4, 0.4)), 0.0)
     texture = draw_texture(rng)
@@ -411,7 +439,6 @@ def _draft_family(seed: int, size, rng: np.random.Generator) -> FamilySpec:
         texture = draw_texture(rng, "photo")
     backdrop = Backdrop(texture, depth, tilt)
     twist, motion = _camera_motion(rng)
-    common = draw_common(rng)
     textures = ", ".join(t.label() for t in [backdrop.texture] + [p.texture for p in parts])
     return FamilySpec(
         seed=seed,
@@ -439,14 +466,19 @@ def _check_size(size) -> tuple[int, int]:
 
 
 def draw_spec(seed: int, size, kind: str, drafter, *, attempts: int = 50) -> FamilySpec:
-    """The first draft of ``drafter(seed, size, rng)`` that passes :func:`finish_spec`."""
+    """The first draft of ``drafter(seed, size, rng, common)`` that passes :func:`finish_spec`.
+
+    ``common`` (:func:`draw_common`: blur target, noise, duty cycle) is drawn once, so
+    that redrawing a rejected geometry does not bias the blur lengths.
+    """
     size = _check_size(size)
     split(seed)
     rng = np.random.default_rng([int(seed), FAMILY_KINDS.index(kind)])
+    common = draw_common(rng)
     reasons = []
     for _ in range(attempts):
         try:
-            return finish_spec(drafter(int(seed), size, rng))
+            return finish_spec(drafter(int(seed), size, rng, common))
         except Rejected as why:
             reasons.append(str(why))
     raise RuntimeError(f"no valid {kind} scene for seed {seed}: {reasons[-1]}")

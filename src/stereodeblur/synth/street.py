@@ -26,7 +26,6 @@ from .family import (
     PHOTO_MAGNIFICATION,
     FamilySpec,
     Part,
-    draw_common,
     draw_spec,
     split,
 )
@@ -153,7 +152,7 @@ def _cars(rng: np.random.Generator, street: dict, fx: float) -> list[Part]:
     return cars
 
 
-def _draft_street(seed: int, size, rng: np.random.Generator) -> FamilySpec:
+def _draft_street(seed: int, size, rng: np.random.Generator, common: dict) -> FamilySpec:
     fx = 0.8 * size[0]
     parts, street = _layout(rng, fx)
     parts += _cars(rng, street, fx)
@@ -168,7 +167,6 @@ def _draft_street(seed: int, size, rng: np.random.Generator) -> FamilySpec:
             0.008 * rng.uniform(-1, 1),
         ]
     )
-    common = draw_common(rng)
     cars = len(parts) - 4
     return FamilySpec(
         seed=seed,

@@ -1,0 +1,400 @@
+"""Honest calibration protocol of the defaults (issue 12): tune on one half, report on the other.
+
+Run from the repository root::
+
+    python benchmarks/calibrate_defaults.py --scenes 3                       # smoke run, train
+    python benchmarks/calibrate_defaults.py --scenes 50 --size 640x480 --jobs 2
+    python benchmarks/calibrate_defaults.py --split test --scenes 40 --size 320x240
+
+Scenes: the seeded randomised family (:mod:`stereodeblur.synth.family`) and the semi-real
+street scenes (:mod:`stereodeblur.synth.street`), alternating (``--kinds``); scene ``j`` of
+the train split has seed ``j // len(kinds)`` (0-999), of the test split ``1000 + j //
+len(kinds)``. **Tune only on ``--split train`` (the default); the test split is run and
+printed only when asked for explicitly with ``--split test``, to report results that
+were never looked at while tuning.**
+
+For every scene, frame 1 of the left view is deblurred with the pipeline
+(:func:`stereodeblur.pipeline.deblur_frame`) from each motion source of ``--motions``
+(``gt``: the piecewise-planar model fitted to the true disparity and flow; ``sceneflow``:
+estimated), the motion computed once per scene and source
+(:func:`~stereodeblur.pipeline.frame_motion`) and reused by every column:
+
+- ``default``: :class:`~stereodeblur.pipeline.DeblurSettings` defaults;
+- ``paper``: the paper's settings, ``alpha=0.001``, ``boundary_weights='none'``;
+- ``alpha=A`` for A in :data:`ALPHAS`, the default boundary handling;
+
+and once with the monocular path with the same defaults (``motion_source='initial-flow',
+kernels='displacement'``). PSNR and SSIM are measured against gt/sharp without a border of
+2.5 % of the width (at least 4 px), as ``stereodeblur bench paper`` does.
+
+Checks (issue 12), per motion source: the default is within 0.5 dB of the best alpha on
+average and within 1.5 dB on every scene, and never more than 0.5 dB below the paper's
+settings. Written: ``--output`` (markdown, default
+``benchmarks/results/calibrate_defaults_SPLIT_WxH.md``) and the same path with ``.json``.
+Rendered scenes and per-column results are cached under ``--work``, so a rerun resumes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
+PAPER = {"alpha": 1e-3, "boundary_weights": "none"}
+FRAME = 1
+MOTIONS = ("gt", "sceneflow")
+KINDS = ("family", "street")
+WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
+"""dB limits of the checks (issue 12)."""
+
+
+@dataclass(frozen=True)
+class Column:
+    """One deblurring of frame 1: its key, motion source and settings overrides."""
+
+    key: str
+    motion_source: str
+    overrides: dict = field(default_factory=dict)
+
+    def settings(self):
+        from stereodeblur.pipeline import DeblurSettings
+
+        if self.motion_source == "initial-flow":
+            return DeblurSettings(motion_source="initial-flow", kernels="displacement")
+        return DeblurSettings(motion_source=self.motion_source, **self.overrides)
+
+
+def alpha_key(alpha: float) -> str:
+    return f"alpha={alpha:g}"
+
+
+def columns_for(motions) -> list[Column]:
+    """Every column of the protocol for the motion sources ``motions``, then the monocular."""
+    out = []
+    for source in motions:
+        out.append(Column("default", source))
+        out.append(Column("paper", source, dict(PAPER)))
+        out += [Column(alpha_key(a), source, {"alpha": a}) for a in ALPHAS]
+    out.append(Column("monocular", "initial-flow"))
+    return out
+
+
+def border_of(width: int) -> int:
+    """The benches' PSNR border: 2.5 % of the width, at least 4 px."""
+    return max(4, round(0.025 * width))
+
+
+def scene_list(split: str, count: int, kinds) -> list[tuple[str, int]]:
+    """``(kind, seed)`` of the first ``count`` scenes of ``split``, kinds alternating."""
+    from stereodeblur.synth.family import seeds_of
+
+    per_kind = math.ceil(count / len(kinds))
+    seeds = seeds_of(split, per_kind)
+    return [(kinds[j % len(kinds)], seeds[j // len(kinds)]) for j in range(count)]
+
+
+def ensure_scene(kind: str, seed: int, size, work: Path) -> Path:
+    """The rendered scene folder, rendered first if it is not in ``work`` yet."""
+    import shutil
+
+    from stereodeblur.synth.family import family_scene, spec_json, write_family_scene
+    from stereodeblur.synth.street import street_scene
+
+    make = family_scene if kind == "family" else street_scene
+    spec = make(seed, size=size)
+    root = work / "scenes" / spec.name
+    record = root / "gt" / "family.json"
+    if record.is_file() and record.read_text(encoding="utf-8") != spec_json(spec):
+        _log(f"{spec.name}: the cached scene is stale (another generator version): rendering again")
+        shutil.rmtree(root)
+        shutil.rmtree(work / "results" / spec.name, ignore_errors=True)
+    if not record.is_file():
+        write_family_scene(spec, root)
+    return root
+
+
+def _log(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def _cached(path: Path, signature: str) -> dict | None:
+    if path.is_file():
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("signature") == signature:
+            return data
+    return None
+
+
+def run_column(scene, column: Column, motion, truth) -> dict:
+    """Deblur frame 1 with ``column`` and the given motion; PSNR, SSIM, alpha, seconds."""
+    import warnings
+
+    from stereodeblur.evaluation.metrics import psnr, ssim
+    from stereodeblur.pipeline import deblur_frame
+
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = deblur_frame(scene, FRAME, view="left", settings=column.settings(), motion=motion)
+    seconds = time.perf_counter() - start
+    border = border_of(truth.shape[1])
+    return {
+        "psnr": psnr(result.image, truth, border=border),
+        "ssim": ssim(result.image, truth, border=border),
+        "alpha": float(result.alpha) if result.alpha is not None else math.nan,
+        "seconds": seconds,
+    }
+
+
+def run_scene(task) -> dict:
+    """Every column on one scene (rendered first if needed), reusing cached results."""
+    import warnings
+
+    from stereodeblur.evaluation.metrics import psnr, ssim
+    from stereodeblur.io.scene import open_scene
+    from stereodeblur.pipeline import frame_motion
+
+    kind, seed, size, work, motions = task
+    work = Path(work)
+    start = time.perf_counter()
+    root = ensure_scene(kind, seed, size, work)
+    render_seconds = time.perf_counter() - start
+    spec = json.loads((root / "gt" / "family.json").read_text(encoding="utf-8"))
+    scene = open_scene(root)
+    truth = scene.read_gt_sharp("left", FRAME)
+    blurred = scene.read_frame("left", FRAME)
+    border = border_of(truth.shape[1])
+    cache = work / "results" / root.name
+    cache.mkdir(parents=True, exist_ok=True)
+    results, motion_seconds, motion_cache = {}, {}, {}
+    for column in columns_for(motions):
+        name = f"{column.motion_source}/{column.key}"
+        signature = repr(column.settings())
+        path = cache / f"{column.motion_source}_{column.key}.json"
+        data = _cached(path, signature)
+        if data is None:
+            source = column.motion_source
+            if source not in motion_cache:
+                t0 = time.perf_counter()
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    settings = Column("default", source).settings()
+                    motion_cache[source] = frame_motion(scene, FRAME, "left", settings, blurred)
+                motion_seconds[source] = time.perf_counter() - t0
+            data = run_column(scene, column, motion_cache[source], truth)
+            data["signature"] = signature
+            path.write_text(json.dumps(data, indent=1), encoding="utf-8")
+            _log(f"{root.name} {name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
+        results[name] = {k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")}
+    return {
+        "scene": root.name,
+        "kind": kind,
+        "seed": seed,
+        "split": spec["split"],
+        "blur_px": spec["blur_px"],
+        "noise": spec["noise"],
+        "duty_cycle": spec["duty_cycle"],
+        "description": spec["description"],
+        "blurred": {
+            "psnr": psnr(blurred, truth, border=border),
+            "ssim": ssim(blurred, truth, border=border),
+        },
+        "columns": results,
+        "render_seconds": render_seconds,
+        "motion_seconds": motion_seconds,
+    }
+
+
+def gaps(row: dict, source: str) -> dict:
+    """Default, paper and best alpha of one scene and source, and the default's gaps."""
+    columns = row["columns"]
+    value = {k.split("/", 1)[1]: v["psnr"] for k, v in columns.items() if k.startswith(source)}
+    best_key = max((alpha_key(a) for a in ALPHAS), key=lambda k: value[k])
+    return {
+        "default": value["default"],
+        "default_alpha": columns[f"{source}/default"]["alpha"],
+        "paper": value["paper"],
+        "best": value[best_key],
+        "best_alpha": best_key.split("=", 1)[1],
+        "below_best": value[best_key] - value["default"],
+        "below_paper": value["paper"] - value["default"],
+    }
+
+
+def checks(rows, motions) -> list[tuple[str, bool, str]]:
+    """The issue's three checks per motion source: ``(name, passed, figures)``."""
+    out = []
+    for source in motions:
+        g = [gaps(r, source) for r in rows]
+        mean_best = sum(x["below_best"] for x in g) / len(g)
+        worst_best = max(g, key=lambda x: x["below_best"])
+        worst_paper = max(g, key=lambda x: x["below_paper"])
+        i_best, i_paper = g.index(worst_best), g.index(worst_paper)
+        out += [
+            (
+                f"{source}: default within {WITHIN_BEST_MEAN} dB of the best alpha on average",
+                mean_best <= WITHIN_BEST_MEAN,
+                f"mean gap {mean_best:+.2f} dB",
+            ),
+            (
+                f"{source}: default within {WITHIN_BEST_EACH} dB of the best alpha on every scene",
+                worst_best["below_best"] <= WITHIN_BEST_EACH,
+                f"worst {worst_best['below_best']:+.2f} dB ({rows[i_best]['scene']})",
+            ),
+            (
+                f"{source}: default never more than {BELOW_PAPER} dB below the paper's settings",
+                worst_paper["below_paper"] <= BELOW_PAPER,
+                f"worst {worst_paper['below_paper']:+.2f} dB ({rows[i_paper]['scene']})",
+            ),
+        ]
+    return out
+
+
+def _cell(entry: dict | None) -> str:
+    return "–" if entry is None else f"{entry['psnr']:.2f} / {entry['ssim']:.3f}"
+
+
+def scene_table(row: dict, motions) -> list[str]:
+    """One scene: every column's PSNR / SSIM per motion source."""
+    lines = [
+        f"### {row['scene']}",
+        "",
+        f"{row['description']}; longest blur {row['blur_px']:.1f} px, noise "
+        f"{row['noise']:.4f}, duty cycle {row['duty_cycle']:.2f}; blurred input "
+        f"{row['blurred']['psnr']:.2f} dB",
+        "",
+        "| column | " + " | ".join(f"{m} PSNR / SSIM" for m in motions) + " |",
+        "|---|" + "---|" * len(motions),
+    ]
+    keys = ["default", "paper"] + [alpha_key(a) for a in ALPHAS]
+    for key in keys:
+        cells = [_cell(row["columns"].get(f"{m}/{key}")) for m in motions]
+        if key == "default":
+            alphas = [row["columns"][f"{m}/default"]["alpha"] for m in motions]
+            key = "default (alpha " + ", ".join(f"{a:.2g}" for a in alphas) + ")"
+        lines.append(f"| {key} | " + " | ".join(cells) + " |")
+    lines.append(f"| monocular (initial flow) | {_cell(row['columns']['initial-flow/monocular'])}")
+    return lines + [""]
+
+
+def summary_table(rows, motions) -> list[str]:
+    """Per scene and source: default, paper, best alpha and the default's gaps (dB)."""
+    lines = [
+        "| scene | blur px | noise | motion | default | paper | best alpha | best | "
+        "best - default | paper - default | monocular |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        mono = row["columns"]["initial-flow/monocular"]["psnr"]
+        for source in motions:
+            g = gaps(row, source)
+            lines.append(
+                f"| {row['scene']} | {row['blur_px']:.1f} | {row['noise']:.3f} | {source} | "
+                f"{g['default']:.2f} | {g['paper']:.2f} | {g['best_alpha']} | {g['best']:.2f} | "
+                f"{g['below_best']:+.2f} | {g['below_paper']:+.2f} | {mono:.2f} |"
+            )
+    return lines
+
+
+def report(rows, args, seconds: float) -> str:
+    motions = args.motions
+    passed = checks(rows, motions)
+    lines = [
+        f"# Calibration protocol: {args.split} split, {args.size}, {len(rows)} scenes",
+        "",
+        f"Command: `python benchmarks/calibrate_defaults.py {' '.join(sys.argv[1:])}`; "
+        f"{seconds / 60:.1f} min wall time ({os.cpu_count()} cores, --jobs {args.jobs}, "
+        "cached renders and columns reused).",
+        "",
+        (
+            "Test split: scenes never looked at while tuning."
+            if args.split == "test"
+            else "Train split: the scenes the defaults may be tuned on."
+        ),
+        "",
+        "## Checks (issue 12)",
+        "",
+    ]
+    lines += [f"- {'PASS' if ok else 'FAIL'}: {name} ({figures})" for name, ok, figures in passed]
+    lines += ["", "## Summary (PSNR, dB)", ""] + summary_table(rows, motions)
+    lines += ["", "## Per scene (PSNR dB / SSIM)", ""]
+    for row in rows:
+        lines += scene_table(row, motions)
+    return "\n".join(lines) + "\n"
+
+
+def parse(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--split", choices=("train", "test"), default="train")
+    parser.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default 320x240)")
+    parser.add_argument("--scenes", type=int, default=3, help="number of scenes (default 3)")
+    parser.add_argument("--kinds", default=",".join(KINDS), help="family,street (alternating)")
+    parser.add_argument("--motions", default=",".join(MOTIONS), help="gt,sceneflow")
+    parser.add_argument(
+        "--work",
+        default=str(Path(tempfile.gettempdir()) / "stereodeblur_calibration"),
+        help="cache folder of rendered scenes and results (default: in the temp folder)",
+    )
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument("--output", default=None, help="markdown output (and .json beside)")
+    args = parser.parse_args(argv)
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        parser.error(f"--size must be WIDTHxHEIGHT, got {args.size!r}")
+    args.size_pair = (width, height)
+    args.kinds = tuple(k for k in args.kinds.split(",") if k)
+    args.motions = tuple(m for m in args.motions.split(",") if m)
+    if not args.kinds or set(args.kinds) - set(KINDS):
+        parser.error(f"--kinds must name some of {', '.join(KINDS)}")
+    if not args.motions or set(args.motions) - set(MOTIONS):
+        parser.error(f"--motions must name some of {', '.join(MOTIONS)}")
+    if args.scenes < 1 or args.jobs < 1:
+        parser.error("--scenes and --jobs must be at least 1")
+    if args.output is None:
+        args.output = f"benchmarks/results/calibrate_defaults_{args.split}_{args.size}.md"
+    return args
+
+
+def main(argv=None) -> int:
+    args = parse(argv)
+    work = Path(args.work) / args.size
+    tasks = [
+        (kind, seed, args.size_pair, str(work), args.motions)
+        for kind, seed in scene_list(args.split, args.scenes, args.kinds)
+    ]
+    start = time.perf_counter()
+    if args.jobs == 1:
+        rows = [run_scene(t) for t in tasks]
+    else:
+        os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(args.jobs, mp_context=context) as pool:
+            rows = list(pool.map(run_scene, tasks))
+    seconds = time.perf_counter() - start
+    text = report(rows, args, seconds)
+    output = Path(args.output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    for path, content in (
+        (output, text),
+        (output.with_suffix(".json"), json.dumps(rows, indent=1) + "\n"),
+    ):
+        partial = path.with_name(path.name + ".partial")
+        partial.write_text(content, encoding="utf-8")
+        partial.replace(path)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
