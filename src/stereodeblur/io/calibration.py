@@ -70,7 +70,23 @@ class StereoCalibration:
 
 
 def _relative_difference(a: float, b: float) -> float:
+    a, b = float(a), float(b)  # Python floats: inf on overflow, no numpy warning
     return abs(a - b) / max(abs(a), abs(b), 1e-12)
+
+
+def _checked_camera(derive, where: str) -> StereoCamera:
+    """``derive()`` with float overflow or invalid results and bad cameras as InputError."""
+    try:
+        with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
+            return derive()
+    except FloatingPointError:
+        raise InputError(f"{where}: numbers out of range for a camera") from None
+    except np.linalg.LinAlgError:
+        raise InputError(f"{where}: the camera matrix is singular") from None
+    except InputError:
+        raise
+    except ValueError as exc:  # StereoCamera's own checks
+        raise InputError(f"{where}: {exc}") from None
 
 
 def stereo_from_projections(P_left, P_right, where: str) -> StereoCamera:
@@ -78,6 +94,10 @@ def stereo_from_projections(P_left, P_right, where: str) -> StereoCamera:
 
     ``where`` names the file and keys in error messages, e.g. ``'calib.txt: P0/P1'``.
     """
+    return _checked_camera(lambda: _from_projections(P_left, P_right, where), where)
+
+
+def _from_projections(P_left, P_right, where: str) -> StereoCamera:
     P_left = np.asarray(P_left, dtype=np.float64)
     P_right = np.asarray(P_right, dtype=np.float64)
     for name, P in (("left", P_left), ("right", P_right)):
@@ -293,6 +313,10 @@ def _image_size(entries, path: Path) -> tuple[int, int] | None:
 
 def _camera_from_q(Q: np.ndarray, path: Path) -> StereoCamera:
     where = f"{path}: 'Q'"
+    return _checked_camera(lambda: _from_q(Q, where), where)
+
+
+def _from_q(Q: np.ndarray, where: str) -> StereoCamera:
     pattern = np.array([[1, 0], [0, 1], [0, 0], [0, 0]], dtype=np.float64)
     if not np.allclose(Q[:, :2], pattern, atol=1e-9) or Q[0, 2] != 0 or Q[1, 2] != 0 or Q[2, 2]:
         raise InputError(

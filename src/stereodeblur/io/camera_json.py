@@ -53,9 +53,15 @@ class CameraInfo:
 
 
 def _number(path, key: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    number = math.nan
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond float range
+            pass
+    if not math.isfinite(number):
         raise InputError(f"{path}: {key!r} must be a finite number, got {_short(value)}")
-    return float(value)
+    return number
 
 
 def json_object(text: str, path) -> dict:
@@ -66,6 +72,8 @@ def json_object(text: str, path) -> dict:
         raise InputError(
             f"{path}: invalid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
         ) from None
+    except RecursionError:
+        raise InputError(f"{path}: invalid JSON (nested too deeply)") from None
     if not isinstance(data, dict):
         raise InputError(f"{path}: expected a JSON object, got {type(data).__name__}")
     return data
