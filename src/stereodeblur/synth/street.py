@@ -22,15 +22,10 @@ import math
 
 import numpy as np
 
-from .family import (
-    PHOTO_MAGNIFICATION,
-    FamilySpec,
-    Part,
-    draw_spec,
-    split,
-)
+from .family import draw_spec
 from .objects import Solid
 from .patterns import SurfaceTexture, draw_texture
+from .scenespec import PHOTO_MAGNIFICATION, FamilySpec, Part, split
 
 REFERENCE_DEPTH = 4.0
 """Depth (metres) at which photographs are seen at :data:`PHOTO_MAGNIFICATION`."""
