@@ -13,7 +13,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from ..geometry.camera import StereoCamera
+from ..geometry.camera import StereoCamera, pixel_rays
 from .fusion import ProposalSet
 from .prediction import predict
 
@@ -186,14 +186,16 @@ def blur_length_change(
     abc = proposals.abc[g]
     d0 = np.maximum(abc[:, 0] * x + abc[:, 1] * y + abc[:, 2], 1e-6)
     depth = camera.fx * camera.baseline / d0
-    P = (camera.K_inv @ np.stack([x, y, np.ones_like(x)]) * depth).T
+    P = pixel_rays(camera.K_inv, x, y).T * depth  # (3, N)
     half = duty_cycle / 2
     positions = []
     for u in (-half, half, 1 - half, 1 + half):
-        Mu = se3_exp(u * twists)[g]
-        Q = np.einsum("nij,nj->ni", Mu[:, :3, :3], P) + Mu[:, :3, 3]
-        z = np.where(Q[:, 2] > 1e-9, Q[:, 2], np.nan)
-        positions.append(np.stack([camera.fx * Q[:, 0] / z, camera.K[1, 1] * Q[:, 1] / z], axis=1))
+        M = se3_exp(u * twists)  # per proposal; Q = R P + T per pixel, row by row
+        Q = [
+            M[g, i, 0] * P[0] + M[g, i, 1] * P[1] + M[g, i, 2] * P[2] + M[g, i, 3] for i in range(3)
+        ]
+        z = np.where(Q[2] > 1e-9, Q[2], np.nan)
+        positions.append(np.stack([camera.fx * Q[0] / z, camera.K[1, 1] * Q[1] / z], axis=1))
     length_t = np.linalg.norm(positions[1] - positions[0], axis=1)
     length_t1 = np.linalg.norm(positions[3] - positions[2], axis=1)
     change = np.nan_to_num(length_t1 - length_t)

@@ -319,8 +319,7 @@ def _with_occlusion(camera, labels, chosen: ChosenMotion, matches: InitialMatche
         depth_margin=settings.depth_margin,
         boundary_jump=settings.boundary_jump,
     )
-    sceneflow = SceneFlow(camera, labels, chosen.normals, chosen.twists, masks.combined)
-    return sceneflow, masks
+    return provisional.with_occlusion(masks.combined), masks
 
 
 def _counts(start, chosen: ChosenMotion) -> dict:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.camera import VIEWS, StereoCamera
+from ..geometry.camera import VIEWS, StereoCamera, pixel_rays
 from ..geometry.homography import trajectory_homographies
 
 
@@ -78,24 +78,55 @@ class SceneFlow:
         return self.normals.shape[0]
 
     def points(self) -> np.ndarray:
-        """Left-camera 3D point of every reference pixel at frame t, shape (H, W, 3)."""
+        """Left-camera 3D point of every reference pixel at frame t, shape (H, W, 3).
+
+        Computed once per scene flow (read-only; the geometry must not change in place).
+        """
+        return self._cached("points", self._points)
+
+    def points_at(self, fraction: float) -> np.ndarray:
+        """The reference pixels' 3D points after ``fraction`` of the frame interval
+        (computed once per fraction, read-only)."""
+        return self._cached(("points_at", float(fraction)), lambda: self._points_at(fraction))
+
+    def _cached(self, key, compute) -> np.ndarray:
+        cache = self.__dict__.setdefault("_geometry", {})
+        if key not in cache:
+            value = compute()
+            value.flags.writeable = False
+            cache[key] = value
+        return cache[key]
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_geometry"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+
+    def _points(self) -> np.ndarray:
         H, W = self.shape
         y, x = np.mgrid[0:H, 0:W].astype(np.float64)
         c = self.camera.center(self.view)
-        rays = np.stack([x, y, np.ones_like(x)], axis=-1) @ self.camera.K_inv.T
+        rays = pixel_rays(self.camera.K_inv, x, y)
         # Plane in this view's coordinates: P_v^T n_v = 1 with n_v = n / (1 - n.c).
         n = self.normals[self.labels]
         n_v = n / (1.0 - n @ c)[..., None]
         depth = 1.0 / np.maximum(np.einsum("hwk,hwk->hw", rays, n_v), 1e-12)
         return rays * depth[..., None] + c
 
-    def points_at(self, fraction: float) -> np.ndarray:
-        """The reference pixels' 3D points after ``fraction`` of the frame interval."""
+    def _points_at(self, fraction: float) -> np.ndarray:
         from ..geometry.rigid import se3_exp
 
         M = se3_exp(fraction * self.twists)[self.labels]  # (H, W, 4, 4)
         P = self.points()
         return np.einsum("hwij,hwj->hwi", M[..., :3, :3], P) + M[..., :3, 3]
+
+    def with_occlusion(self, occlusion: np.ndarray) -> SceneFlow:
+        """The same scene flow with another occlusion mask (sharing the computed geometry)."""
+        out = SceneFlow(self.camera, self.labels, self.normals, self.twists, occlusion, self.view)
+        if "_geometry" in self.__dict__:
+            out.__dict__["_geometry"] = self.__dict__["_geometry"]
+        return out
 
     def disparity(self) -> np.ndarray:
         """Disparity of every reference pixel at frame t, pixels."""

@@ -6,6 +6,7 @@ Planes are left-view disparity coefficients ``(a, b, c)``, ``d = a x + b y + c``
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .prediction import group_sums, grouped
@@ -126,16 +127,22 @@ def _hypotheses(groups, num_groups, xc, yc, d, ok, rng, num_hypotheses):
 
 def _count_inliers(groups, num_groups, hyp, xc, yc, d, threshold):
     """Pixels of each group within ``threshold`` of each of its hypotheses, shape (G, H)."""
+    return _inlier_counts(
+        groups, np.ascontiguousarray(hyp), xc, yc, d, float(threshold), int(num_groups)
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _inlier_counts(groups, hyp, xc, yc, d, threshold, num_groups):
     num = hyp.shape[1]
-    resid = np.abs(
-        hyp[groups, :, 0] * xc[:, None]
-        + hyp[groups, :, 1] * yc[:, None]
-        + hyp[groups, :, 2]
-        - d[:, None]
-    )  # (N, H)
-    slot = (groups[:, None] * num + np.arange(num)).ravel()
-    counts = np.bincount(slot[(resid < threshold).ravel()], minlength=num_groups * num)
-    return counts.reshape(num_groups, num).astype(np.float64)
+    counts = np.zeros((num_groups, num))
+    for n in range(len(groups)):
+        k = groups[n]
+        for h in range(num):
+            r = abs(hyp[k, h, 0] * xc[n] + hyp[k, h, 1] * yc[n] + hyp[k, h, 2] - d[n])
+            if r < threshold:
+                counts[k, h] += 1.0
+    return counts
 
 
 def _irls_step(groups, num_groups, cur, ok, xc, yc, d, extent, *, scale, cutoff, ridge):

@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.camera import StereoCamera
+from ..geometry.camera import StereoCamera, apply_matrix, pixel_rays
 
 
 def rays(camera: StereoCamera, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Viewing rays ``K^-1 (x, y, 1)`` of left-view pixels, shape (..., 3)."""
-    ones = np.ones_like(np.asarray(x, dtype=np.float64))
-    return np.stack([x, y, ones], axis=-1) @ camera.K_inv.T
+    return pixel_rays(camera.K_inv, x, y)
 
 
 def predict(
@@ -61,7 +60,7 @@ def predict(
     qz = q[..., 2]
     ok = (d0 > 0) & (qz > 0)
     qz_safe = np.where(ok, qz, 1.0)
-    p = q @ camera.K.T
+    p = apply_matrix(camera.K, q)
     x1 = np.where(ok, p[..., 0] / qz_safe, np.nan)
     y1 = np.where(ok, p[..., 1] / qz_safe, np.nan)
     d1 = np.where(ok, fb * w / qz_safe, np.nan)
