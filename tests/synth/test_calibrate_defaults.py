@@ -1,0 +1,70 @@
+"""The protocol runner's bookkeeping (benchmarks/calibrate_defaults.py), on made-up figures."""
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "calibrate_defaults.py"
+
+
+@pytest.fixture(scope="module")
+def runner():
+    spec = importlib.util.spec_from_file_location("calibrate_defaults", PATH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        del sys.modules[spec.name]
+
+
+def _row(runner, name, default, paper, best):
+    columns = {"gt/default": {"psnr": default, "ssim": 0.9, "alpha": 1e-4, "seconds": 1.0}}
+    columns["gt/paper"] = {"psnr": paper, "ssim": 0.9, "alpha": 1e-3, "seconds": 1.0}
+    for i, alpha in enumerate(runner.ALPHAS):
+        psnr = best if i == 2 else best - 1 - i
+        columns[f"gt/{runner.alpha_key(alpha)}"] = {"psnr": psnr, "ssim": 0.9, "alpha": alpha}
+    return {"scene": name, "columns": columns}
+
+
+def test_columns_cover_the_protocol(runner):
+    keys = [(c.motion_source, c.key) for c in runner.columns_for(("gt", "sceneflow"))]
+    assert len(keys) == 2 * (2 + len(runner.ALPHAS)) + 1
+    assert ("initial-flow", "monocular") in keys and ("sceneflow", "paper") in keys
+    assert ("initial-flow", "monocular") not in [
+        (c.motion_source, c.key) for c in runner.columns_for(("gt",))
+    ]
+    paper = [c for c in runner.columns_for(("gt",)) if c.key == "paper"][0].settings()
+    assert paper.alpha == 1e-3 and paper.boundary_weights == "none"
+    mono = runner.columns_for(("sceneflow",))[-1].settings()
+    assert (mono.motion_source, mono.kernels) == ("initial-flow", "displacement")
+
+
+def test_checks_pass_and_fail_on_the_issue_limits(runner):
+    good = [_row(runner, "a", 30.0, 30.2, 30.3), _row(runner, "b", 25.0, 24.0, 25.4)]
+    assert all(ok for _, ok, _ in runner.checks(good, ("gt",)))
+    gaps = runner.gaps(good[0], "gt")
+    assert gaps["best_alpha"] == "0.0001" and math.isclose(gaps["below_best"], 0.3)
+    below_paper = good + [_row(runner, "c", 28.0, 28.6, 28.5)]
+    results = {name: ok for name, ok, _ in runner.checks(below_paper, ("gt",))}
+    assert [ok for ok in results.values()] == [True, True, False]
+    exact = [_row(runner, f"e{i}", 30.0, 29.0, 30.0) for i in range(4)]
+    far = good + exact + [_row(runner, "d", 20.0, 19.0, 21.6)]  # mean gap 0.38 dB
+    assert [ok for _, ok, _ in runner.checks(far, ("gt",))] == [True, False, True]
+
+
+def test_scene_lists_follow_the_split(runner):
+    assert runner.scene_list("train", 3, ("family", "street")) == [
+        ("family", 0),
+        ("street", 0),
+        ("family", 1),
+    ]
+    assert runner.scene_list("test", 2, ("street",)) == [("street", 1000), ("street", 1001)]
+    args = runner.parse([])
+    assert args.split == "train" and args.output.endswith("calibrate_defaults_train_320x240.md")
+    with pytest.raises(SystemExit):
+        runner.parse(["--kinds", "forest"])
