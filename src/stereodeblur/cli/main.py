@@ -54,6 +54,8 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except INPUT_ERRORS as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
+        if isinstance(err, InputError) and err.parameter:  # the option that sets it
+            message += f" (option --{err.parameter.replace('_', '-')})"
         print(f"stereodeblur: error: {message}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
