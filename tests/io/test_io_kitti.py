@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from stereodeblur.cli import main
+from stereodeblur.errors import InputError
 from stereodeblur.io.formats import write_png
 from stereodeblur.io.kitti import (
     KITTI_FRAME_RATE,
@@ -102,8 +103,9 @@ def test_raw_recording_warns_of_dropped_frames(tmp_path, clips):
 
 def test_several_sequences_need_a_choice(kitti, clips):
     write_kitti_2015(kitti, *clips, K, BASELINE * 2, sequence=7, first=0)
-    with pytest.raises(ValueError, match="2 sequences .*--sequence"):
+    with pytest.raises(InputError, match="2 sequences .*choose one with sequence") as error:
         open_source(kitti, exposure=0.02)
+    assert error.value.parameter == "sequence"
     seven = open_source(kitti, exposure=0.02, sequence=7)
     assert seven.info.camera.baseline == pytest.approx(2 * BASELINE)
     assert seven.frame_path("left", 0).name == "000007_00.png"

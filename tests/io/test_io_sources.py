@@ -42,10 +42,10 @@ def test_spec_reopens_the_same_source_from_another_folder(tiny_scene, monkeypatc
         ("single file", InputError, "single file"),
         ("three paths", InputError, "got 3 paths"),
         ("unknown folder", InputError, "not a scene folder"),
-        ("calib for a folder", InputError, "--calib is only for video pairs"),
-        ("sequence for a scene", InputError, "--sequence"),
-        ("bad colour", InputError, "--color"),
-        ("negative exposure", InputError, "--exposure"),
+        ("calib for a folder", InputError, "calib is only for video pairs"),
+        ("sequence for a scene", InputError, "sequence is only for KITTI"),
+        ("bad colour", InputError, "color must be 'linear' or 'srgb'"),
+        ("negative exposure", InputError, "exposure must be a non-negative number"),
     ],
 )
 def test_bad_inputs(case, error, fragment, tmp_path):
@@ -69,5 +69,19 @@ def test_bad_inputs(case, error, fragment, tmp_path):
         options["color"] = "gamma"
     elif case == "negative exposure":
         options["exposure"] = -1
-    with pytest.raises(error, match=fragment):
+    with pytest.raises(error, match=fragment) as raised:
         open_source(paths, **options)
+    assert "--" not in str(raised.value)  # the library names parameters, not options
+    if options:
+        assert raised.value.parameter == next(iter(options))
+
+
+def test_the_command_line_names_its_option_for_a_parameter(tmp_path, capsys):
+    from stereodeblur.cli import main
+
+    scene = write_tiny_scene(tmp_path / "scene", num_frames=2)
+    out = tmp_path / "out"
+    code = main(["deblur", str(scene), "--exposure", "-1", "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "exposure" in err[0] and "--exposure" in err[0]
+    assert not out.exists()

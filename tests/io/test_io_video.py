@@ -96,12 +96,12 @@ def test_videos_of_different_lengths_use_the_common_frames(pair, tmp_path):
 @pytest.mark.parametrize(
     "case, fragment",
     [
-        ("no calibration", "--calib"),
+        ("no calibration", "needs calib"),
         ("not a video", "not a readable video"),
         ("different sizes", "one size"),
         ("different frame rates", "frames per second"),
         ("same file twice", "same file"),
-        ("missing exposure", "--exposure"),
+        ("missing exposure", "give exposure in seconds"),
         ("exposure too long", "longer than the frame interval"),
     ],
 )

@@ -133,14 +133,16 @@ class FrameSource:
 # --------------------------------------------------------------------------- timing
 
 
-def _positive(value, name: str) -> float:
+def _number(value, name: str, *, allow_zero: bool) -> float:
+    """``value`` as a finite float > 0 (>= 0 with ``allow_zero``); InputError naming ``name``."""
+    what = "a non-negative" if allow_zero else "a positive"
     try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise InputError(f"{name} must be a positive number, got {value}")
-    return value
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{name} must be {what} number, got {value!r}", parameter=name) from None
+    if not np.isfinite(number) or number < 0 or (number == 0 and not allow_zero):
+        raise InputError(f"{name} must be {what} number, got {number}", parameter=name)
+    return number
 
 
 def camera_info(
@@ -158,34 +160,35 @@ def camera_info(
     """Camera info from the given values, else the source's, else a one-line error.
 
     ``what`` names the source in messages, e.g. ``'KITTI folder data/training'``.
+    Errors about a value the caller gives or must give carry its name as
+    :attr:`InputError.parameter` (``'frame_rate'``, ``'exposure'``, ``'color'``).
     """
     if frame_rate is not None:
-        frame_rate = _positive(frame_rate, "--frame-rate")
+        frame_rate = _number(frame_rate, "frame_rate", allow_zero=False)
     elif source_frame_rate is not None:
         frame_rate = float(source_frame_rate)
     else:
-        raise InputError(f"{what} has no frame rate: pass --frame-rate FPS")
+        raise InputError(
+            f"{what} has no frame rate: give frame_rate (frames per second)",
+            parameter="frame_rate",
+        )
     if exposure is not None:
-        try:
-            exposure = float(exposure)
-        except (TypeError, ValueError):
-            raise InputError(f"--exposure must be a number of seconds, got {exposure!r}") from None
-        if not np.isfinite(exposure) or exposure < 0:
-            raise InputError(f"--exposure must be a non-negative number of seconds, got {exposure}")
+        exposure = _number(exposure, "exposure", allow_zero=True)
     elif source_exposure is not None:
         exposure = float(source_exposure)
     elif require_exposure:
         raise InputError(
-            f"{what} has no exposure time: pass --exposure SECONDS (at most 1/frame rate = "
-            f"{1 / frame_rate:.4g} s)"
+            f"{what} has no exposure time: give exposure in seconds (at most 1/frame rate = "
+            f"{1 / frame_rate:.4g} s)",
+            parameter="exposure",
         )
     else:
         exposure = 0.0
     color = color if color is not None else (source_color or "linear")
     if color not in COLORS:
-        raise InputError(f"--color must be 'linear' or 'srgb', got {color!r}")
+        raise InputError(f"color must be 'linear' or 'srgb', got {color!r}", parameter="color")
     try:
         timing = Exposure(frame_rate, exposure)
     except ValueError as exc:
-        raise InputError(f"{what}: {exc}") from None
+        raise InputError(f"{what}: {exc}", parameter="exposure") from None
     return CameraInfo(camera, timing, color)

@@ -234,7 +234,8 @@ def _benchmark_frames(folder: Path, sequence: str | None, root: Path) -> tuple[s
             names = sorted(found)
             raise InputError(
                 f"{root} holds {len(found)} sequences ({names[0]} .. {names[-1]}): "
-                "choose one with --sequence N"
+                "choose one with sequence",
+                parameter="sequence",
             )
         sequence = next(iter(found))
     else:
@@ -242,7 +243,8 @@ def _benchmark_frames(folder: Path, sequence: str | None, root: Path) -> tuple[s
             sequence = f"{int(sequence):06d}"
         except ValueError:
             raise InputError(
-                f"--sequence must be a number like 5 or 000005, got {sequence!r}"
+                f"sequence must be a number like 5 or 000005, got {sequence!r}",
+                parameter="sequence",
             ) from None
         if sequence not in found:
             raise FileNotFoundError(f"no sequence {sequence} in {folder} (no {sequence}_XX.png)")

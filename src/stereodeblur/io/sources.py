@@ -166,9 +166,14 @@ def open_source(
     paths = [Path(p) for p in paths]
     kind = detect_source(paths)
     if kind != "video" and calib is not None:
-        raise InputError(f"--calib is only for video pairs; {paths[0]} has its own calibration")
+        raise InputError(
+            f"calib is only for video pairs; {paths[0]} has its own calibration",
+            parameter="calib",
+        )
     if kind != "video" and kind not in ("kitti-2015", "kitti-2012") and sequence is not None:
-        raise InputError(f"--sequence is only for KITTI 2012/2015 folders, not {paths[0]}")
+        raise InputError(
+            f"sequence is only for KITTI 2012/2015 folders, not {paths[0]}", parameter="sequence"
+        )
     options = dict(exposure=exposure, frame_rate=frame_rate, color=color)
     if kind == "scene":
         scene = open_scene(paths[0])
@@ -185,7 +190,9 @@ def open_source(
         return scene
     if kind == "video":
         if sequence is not None:
-            raise InputError("--sequence is only for KITTI 2012/2015 folders, not videos")
+            raise InputError(
+                "sequence is only for KITTI 2012/2015 folders, not videos", parameter="sequence"
+            )
         return open_video_pair(
             paths[0], paths[1], calib, **options, require_exposure=require_exposure
         )

@@ -223,8 +223,9 @@ def open_video_pair(
     left, right = Path(left), Path(right)
     if calib is None:
         raise InputError(
-            "a video pair needs --calib FILE: an OpenCV stereo calibration (YAML with P1, P2 "
-            "or Q) or a camera.json"
+            "a video pair needs calib: an OpenCV stereo calibration file (YAML with P1, P2 "
+            "or Q) or a camera.json",
+            parameter="calib",
         )
     if left.resolve() == right.resolve():
         raise InputError(f"the left and right videos are the same file: {left}")
