@@ -27,13 +27,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
-from .frame_source import FrameSource, camera_info
+from .frame_source import camera_info
 from .kitti import detect_kitti, open_kitti
 from .protocol import StereoScene
 from .scene import open_scene
 from .video import open_video_pair
 
-__all__ = ["FrameSource", "SourceSpec", "camera_info", "detect_source", "open_source"]
+__all__ = ["SourceSpec", "detect_source", "open_source"]
 
 
 @dataclass(frozen=True)
