@@ -113,3 +113,28 @@ def test_threaded_chunks_give_the_same_operator(name, monkeypatch):
     np.testing.assert_allclose(chunked.adjoint(image), serial.adjoint(image), rtol=1e-6)
     monkeypatch.undo()
     np.testing.assert_allclose(chunked.forward(image), serial.forward(image), rtol=1e-6)
+
+
+@pytest.mark.parametrize("channels", [None, 3])
+def test_gram_is_adjoint_of_weighted_forward(registered, channels, monkeypatch):
+    """``gram(x, w^2) = A^T (w^2 A x)``, in one chunk and in several (same sums either way)."""
+    from stereodeblur.blur import operator as operator_module
+
+    _, op = registered
+    rng = np.random.default_rng(7)
+    shape = SHAPE if channels is None else SHAPE + (channels,)
+    image = rng.standard_normal(shape).astype(np.float32)
+    squared = rng.uniform(0, 1, SHAPE).astype(np.float32)
+    weighted = op.forward(image) * (squared if channels is None else squared[..., None])
+    expected = op.adjoint(weighted)
+    one_chunk = op.gram(image, squared)
+    np.testing.assert_allclose(one_chunk, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+    np.testing.assert_allclose(op.gram(image), op.adjoint(op.forward(image)), rtol=1e-5, atol=1e-5)
+    monkeypatch.setattr(operator_module, "_GRAM_CHUNK_ENTRIES", 64)
+    chunked = type(op)(op.matrix, op.shape)  # a fresh operator plans its chunks anew
+    assert len(chunked._gram_plan()[0]) > 1
+    np.testing.assert_allclose(chunked.gram(image, squared), one_chunk, rtol=1e-6, atol=1e-7)
+    other = rng.standard_normal(shape).astype(np.float32)  # symmetric: a dot test of its own
+    lhs = float(np.vdot(chunked.gram(image, squared), other))
+    rhs = float(np.vdot(image, chunked.gram(other, squared)))
+    assert abs(lhs - rhs) <= 1e-5 * max(abs(lhs), abs(rhs))

@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -227,11 +229,11 @@ def test_update_weights_hook_and_progress(camera_image, box_blur):
         operator,
         num_irls=4,
         update_weights=residual_weights,
-        progress=lambda done, total: progress.append((done, total)),
+        progress=lambda report: progress.append((report.stage, report.done, report.total)),
     )
     assert [n for n, _ in calls] == [1, 2, 3]
     np.testing.assert_array_equal(calls[0][1], 1.0)  # iteration 0 used the initial weights
-    assert progress == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert progress == [("IRLS", n, 4) for n in range(1, 5)]
     assert len(result.weights_history) == 4
     np.testing.assert_array_equal(result.weights_history[0], 1.0)
     np.testing.assert_array_equal(result.weights, result.weights_history[-1])
@@ -239,6 +241,41 @@ def test_update_weights_hook_and_progress(camera_image, box_blur):
     assert [entry.weights_mean for entry in result.history[1:]] == pytest.approx(
         [float(w.mean()) for w in result.weights_history], rel=1e-6
     )
+
+
+class _ForwardAdjointOnly:
+    """An operator without ``gram``: the solver falls back to forward then adjoint."""
+
+    def __init__(self, operator):
+        self.shape, self.forward, self.adjoint = operator.shape, operator.forward, operator.adjoint
+
+
+def test_gram_and_forward_adjoint_paths_agree(colour_image, box_blur):
+    shape = (32, 48)
+    operator = box_blur(shape, 5, 9, seed=8)
+    blurred = operator.forward(colour_image(shape))
+    weights = np.random.default_rng(8).uniform(0.2, 1.0, shape)
+    fused = deblur_irls(blurred, operator, weights=weights, num_irls=3)
+    plain = deblur_irls(blurred, _ForwardAdjointOnly(operator), weights=weights, num_irls=3)
+    np.testing.assert_allclose(fused.image, plain.image, atol=1e-5)
+    energies = [entry.energy for entry in fused.history]
+    assert energies == pytest.approx([entry.energy for entry in plain.history], rel=1e-6)
+
+
+def test_initial_continues_an_earlier_run_exactly(colour_image, box_blur):
+    """IRLS state is the estimate alone: 3 + 3 iterations from a warm start equal 6."""
+    shape = (32, 48)
+    operator = box_blur(shape, 5, 9, seed=9)
+    blurred = operator.forward(colour_image(shape))
+    first = deblur_irls(blurred, operator, num_irls=3)
+    resumed = deblur_irls(blurred, operator, num_irls=3, initial=first.image)
+    whole = deblur_irls(blurred, operator, num_irls=6)
+    np.testing.assert_array_equal(resumed.image, whole.image)
+    assert resumed.history[0].energy == pytest.approx(first.history[-1].energy, rel=1e-12)
+    assert resumed.history[1:] == tuple(
+        dataclasses.replace(entry, iteration=entry.iteration - 3) for entry in whole.history[4:]
+    )
+    np.testing.assert_array_equal(blurred, operator.forward(colour_image(shape)))  # not modified
 
 
 def test_no_weights_history_without_hook(box_blur):
@@ -258,6 +295,10 @@ def test_bad_input(box_blur):
         deblur_irls(image, operator, weights=np.full((16, 16), 1.5))
     with pytest.raises(InputError, match="operator shape"):
         deblur_irls(np.zeros((16, 17)), operator)
+    with pytest.raises(InputError, match="initial"):
+        deblur_irls(image, operator, initial=np.zeros((16, 15)))
+    with pytest.raises(InputError, match="initial"):
+        deblur_irls(image, operator, initial=np.full((16, 16), np.nan))
     with pytest.raises(InputError, match="exponent"):
         deblur_irls(image, operator, exponent=0)
     with pytest.raises(InputError, match="epsilon"):

@@ -11,6 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+_GRAM_CHUNKS = 8
+"""Row chunks of :meth:`SparseBlur.gram` (fixed, so its sums do not depend on the threads)."""
+_GRAM_CHUNK_ENTRIES = 1 << 18
+"""Fewer matrix entries than this per chunk are not worth a thread."""
+
 
 @dataclass(frozen=True)
 class SparseBlur:
@@ -62,6 +67,60 @@ class SparseBlur:
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """Apply the transpose: ``A^T B``."""
         return self._apply(self._matrix_t, image)
+
+    def gram(self, image: np.ndarray, squared_weights: np.ndarray | None = None) -> np.ndarray:
+        """``A^T W^2 A I`` with ``W^2 = diag(squared_weights)``, one pass over the matrix.
+
+        Equals ``adjoint(squared_weights[..., None] * forward(image))`` up to rounding
+        (``A I`` is not rounded to float32 in between) and reads the matrix once instead of
+        twice, so it takes about half their time.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W) or (H, W, C)
+        squared_weights : ndarray, shape (H, W), optional
+            Per blurred pixel; all ones by default.
+        """
+        image = np.asarray(image)
+        if image.shape[:2] != tuple(self.shape):
+            raise ValueError(
+                f"image shape {image.shape} does not match operator shape {self.shape}"
+            )
+        n = self.matrix.shape[0]
+        if squared_weights is None:
+            squared = np.ones(n, np.float32)
+        else:
+            squared = np.asarray(squared_weights)
+            if squared.shape != tuple(self.shape):
+                raise ValueError(
+                    f"squared_weights shape {squared.shape} does not match {self.shape}"
+                )
+            squared = np.ascontiguousarray(squared.ravel(), dtype=np.float32)
+        dtype = np.result_type(image.dtype, np.float32)
+        M = self.matrix
+        if not _is_compact(M) or dtype not in (np.float32, np.float64):
+            flat = image.reshape(n, -1)
+            product = (M.T @ (squared[:, None] * (M @ flat))).astype(dtype, copy=False)
+            return product.reshape(image.shape)
+        from ._kernels import csr_gram
+
+        flat = np.ascontiguousarray(image.reshape(n, -1), dtype=dtype)
+        plan = self._gram_plan()
+        buffers = np.empty((int(plan[2][-1]), flat.shape[1]), np.float64)
+        out = np.empty_like(flat)
+        csr_gram(M.indptr, M.indices, M.data, squared, flat, out, plan, buffers)
+        return out.reshape(image.shape)
+
+    def _gram_plan(self):
+        plan = self.__dict__.get("_plan")
+        if plan is None:
+            from ._kernels import gram_plan
+
+            M = self.matrix
+            chunks = min(_GRAM_CHUNKS, max(1, M.nnz // _GRAM_CHUNK_ENTRIES))
+            plan = gram_plan(M.indptr, M.indices, M.shape[1], chunks)
+            object.__setattr__(self, "_plan", plan)
+        return plan
 
 
 def merge_rows(base: SparseBlur, other: SparseBlur, mask: np.ndarray) -> SparseBlur:

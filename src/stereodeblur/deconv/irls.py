@@ -19,8 +19,17 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from stereodeblur.deconv.cg import _as_3d, row_channel_dots, solve, threads_for
+from stereodeblur.deconv.cg import _as_3d, by_rows, solve, threads_for
+from stereodeblur.deconv.prior import (
+    add_weighted_laplacian,
+    gradient,
+    gradient_adjoint,
+    smoothness_weights,
+)
 from stereodeblur.errors import InputError
+from stereodeblur.progress import ProgressCallback, report
+
+__all__ = ["DeblurResult", "IrlsIterate", "deblur_irls", "gradient", "gradient_adjoint"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +73,8 @@ class DeblurResult:
     weights : ndarray, float32, shape (H, W)
         The data weights used in the last IRLS iteration.
     history : tuple of IrlsIterate
-        ``num_irls + 1`` entries: the starting point (the blurred frame), then one per iteration.
+        ``num_irls + 1`` entries: the starting point (``initial`` or the blurred frame), then
+        one per iteration.
     weights_history : tuple of ndarray or None
         With ``update_weights``: the weights used in each of the ``num_irls`` iterations.
     """
@@ -75,181 +85,32 @@ class DeblurResult:
     weights_history: tuple[np.ndarray, ...] | None = None
 
 
-# --- gradients ---------------------------------------------------------------------------
-
-
-@numba.njit(parallel=True, cache=True)
-def _differences(image, dx, dy):  # pragma: no cover - compiled
-    rows, cols, channels = image.shape
-    for i in numba.prange(rows):
-        for j in range(cols):
-            for c in range(channels):
-                v = image[i, j, c]
-                dx[i, j, c] = image[i, j + 1, c] - v if j < cols - 1 else 0.0
-                dy[i, j, c] = image[i + 1, j, c] - v if i < rows - 1 else 0.0
-
-
-@numba.njit(parallel=True, cache=True)
-def _differences_adjoint(dx, dy, out):  # pragma: no cover - compiled
-    rows, cols, channels = out.shape
-    for i in numba.prange(rows):
-        for j in range(cols):
-            for c in range(channels):
-                acc = 0.0
-                if j < cols - 1:
-                    acc -= dx[i, j, c]
-                if j > 0:
-                    acc += dx[i, j - 1, c]
-                if i < rows - 1:
-                    acc -= dy[i, j, c]
-                if i > 0:
-                    acc += dy[i - 1, j, c]
-                out[i, j, c] = acc
-
-
-def gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward differences ``D I = (dx I, dy I)``, zero in the last column / row.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W) or (H, W, C)
-
-    Returns
-    -------
-    dx, dy : ndarray
-        Same shape as ``image``; float64 for float64 input, float32 otherwise.
-    """
-    image = np.asarray(image)
-    if image.ndim not in (2, 3):
-        raise InputError(f"image must have shape (H, W) or (H, W, C), got {image.shape}")
-    dtype = np.float64 if image.dtype == np.float64 else np.float32
-    image = np.ascontiguousarray(image, dtype=dtype)
-    dx = np.empty_like(image)
-    dy = np.empty_like(image)
-    _differences(_as_3d(image), _as_3d(dx), _as_3d(dy))
-    return dx, dy
-
-
-def gradient_adjoint(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-    """Adjoint ``D^T (gx, gy) = dx^T gx + dy^T gy`` of :func:`gradient`.
-
-    Entries of ``dx`` in the last column and of ``dy`` in the last row are ignored (the
-    forward differences there are identically zero).
-    """
-    dx = np.asarray(dx)
-    dy = np.asarray(dy)
-    if dx.shape != dy.shape or dx.ndim not in (2, 3):
-        raise InputError(f"dx and dy must share shape (H, W[, C]), got {dx.shape}, {dy.shape}")
-    dtype = np.float64 if np.float64 in (dx.dtype, dy.dtype) else np.float32
-    dx = np.ascontiguousarray(dx, dtype=dtype)
-    dy = np.ascontiguousarray(dy, dtype=dtype)
-    out = np.empty_like(dx)
-    _differences_adjoint(_as_3d(dx), _as_3d(dy), _as_3d(out))
-    return out
-
-
-# --- fused kernels of the IRLS loop -------------------------------------------------------
-
-
-@numba.njit(parallel=True, cache=True)
-def _smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial):  # pragma: no cover
-    """Eq. 7 weights ``alpha * max(|d I|, eps)^(p - 2)`` and row sums of ``h_eps(d I)``.
-
-    ``h_eps(c) = |c|^p`` for ``|c| >= eps`` and ``(p/2) eps^(p-2) c^2 + (1 - p/2) eps^p``
-    below: the function whose IRLS majoriser the weights are. The weights are 0 in the
-    last column (``wx``) and row (``wy``), where the differences are identically zero.
-    """
-    rows, cols, channels = image.shape
-    size = cols * channels
-    x2 = image.reshape(rows, size)
-    wx2 = wx.reshape(rows, size)
-    wy2 = wy.reshape(rows, size)
-    power = np.float32(exponent - 2.0)
-    floor = np.float32(epsilon)
-    scale = np.float32(alpha)
-    rho_floor = floor**power
-    small_scale = 0.5 * exponent * epsilon ** (exponent - 2.0)
-    small_offset = (1.0 - 0.5 * exponent) * epsilon**exponent
-    for i in numba.prange(rows):
-        acc = 0.0
-        for k in range(size - channels):  # x direction: right neighbour k + channels
-            g = abs(x2[i, k + channels] - x2[i, k])
-            g64 = np.float64(g)
-            if g >= floor:
-                rho = g**power
-                acc += np.float64(rho) * g64 * g64
-            else:
-                rho = rho_floor
-                acc += small_scale * g64 * g64 + small_offset
-            wx2[i, k] = scale * rho
-        for k in range(size - channels, size):
-            wx2[i, k] = 0.0
-        if i < rows - 1:
-            for k in range(size):  # y direction: the next row
-                g = abs(x2[i + 1, k] - x2[i, k])
-                g64 = np.float64(g)
-                if g >= floor:
-                    rho = g**power
-                    acc += np.float64(rho) * g64 * g64
-                else:
-                    rho = rho_floor
-                    acc += small_scale * g64 * g64 + small_offset
-                wy2[i, k] = scale * rho
-        else:
-            for k in range(size):
-                wy2[i, k] = 0.0
-        partial[i, 0] = acc
-
-
-@numba.njit(parallel=True, cache=True)
-def _add_weighted_laplacian(x, wx, wy, out, partial):  # pragma: no cover - compiled
-    """``out += dx^T (wx * dx x) + dy^T (wy * dy x)`` (``wx``, ``wy`` include alpha).
-
-    Also writes the row sums of ``x * out`` per channel into ``partial`` (for CG).
-    """
-    rows, cols, channels = x.shape
-    size = cols * channels
-    x2 = x.reshape(rows, size)
-    wx2 = wx.reshape(rows, size)
-    wy2 = wy.reshape(rows, size)
-    out2 = out.reshape(rows, size)
-    for i in numba.prange(rows):
-        row = np.int64(i)
-        up = max(row - 1, 0)  # at the borders the neighbour is the pixel itself: d = 0
-        down = min(row + 1, rows - 1)
-        x_row = x2[row]
-        x_up = x2[up]
-        x_down = x2[down]
-        wy_up = wy2[up]
-        wy_row = wy2[row]
-        wx_row = wx2[row]
-        o = out2[row]
-        for k in range(size):
-            v = x_row[k]
-            o[k] += wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
-        for k in range(channels, size):
-            flux = wx_row[k - channels] * (x_row[k] - x_row[k - channels])
-            o[k] += flux
-            o[k - channels] -= flux
-        row_channel_dots(x_row, o, channels, partial, row)
-
-
-@numba.njit(parallel=True, cache=True)
-def _scale_pixels(image, scale):  # pragma: no cover - compiled
+def _scale_pixels(image, scale) -> None:
     """``image[y, x, :] *= scale[y, x]`` in place."""
+    by_rows(_scale_rows, image, image, scale)
+
+
+def _residual(blurred, reblurred, squared_weights, residual, partial) -> None:
+    """``residual = B - A I``; row sums of ``w^2 |residual|^2`` into ``partial``."""
+    by_rows(_residual_rows, blurred, blurred, reblurred, squared_weights, residual, partial)
+
+
+@numba.njit(cache=True, nogil=True)
+def _scale_rows(first, last, image, scale):  # pragma: no cover - compiled
     rows, cols, channels = image.shape
-    for i in numba.prange(rows):
+    for i in range(first, last):
         for j in range(cols):
             s = scale[i, j]
             for c in range(channels):
                 image[i, j, c] *= s
 
 
-@numba.njit(parallel=True, cache=True)
-def _residual(blurred, reblurred, squared_weights, residual, partial):  # pragma: no cover
-    """``residual = B - A I``; row sums of ``w^2 |residual|^2`` into ``partial``."""
+@numba.njit(cache=True, nogil=True)
+def _residual_rows(
+    first, last, blurred, reblurred, squared_weights, residual, partial
+):  # pragma: no cover
     rows, cols, channels = blurred.shape
-    for i in numba.prange(rows):
+    for i in range(first, last):
         acc = 0.0
         for j in range(cols):
             s = 0.0
@@ -276,10 +137,144 @@ def _check_weights(weights, shape, name: str) -> np.ndarray:
     return weights
 
 
+def _check_image(image, shape, name: str) -> np.ndarray:
+    """``image`` as a private float32 ``(H, W, C)`` copy, after checking shape and values."""
+    image = np.asarray(image)
+    if image.shape != shape or not np.issubdtype(image.dtype, np.number):
+        raise InputError(f"{name} must be a numeric array of shape {shape}, got {image.shape}")
+    image = _as_3d(np.array(image, dtype=np.float32, order="C"))
+    if not np.all(np.isfinite(image)):
+        raise InputError(f"{name} contains NaN or infinite values")
+    return image
+
+
+def _check_anchor(anchor, plane) -> np.ndarray | None:
+    if anchor is None:
+        return None
+    beta = np.asarray(anchor, dtype=np.float32)
+    if beta.shape != plane or not np.all(np.isfinite(beta) & (beta >= 0)):
+        raise InputError(f"anchor must be finite, >= 0 and of shape {plane}")
+    return np.ascontiguousarray(beta) if beta.any() else None
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.flags.writeable = False
     return view
+
+
+def _owned(array: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """``array`` as a writeable C-contiguous float32 array not sharing memory with ``other``."""
+    if (
+        array.dtype != np.float32
+        or np.may_share_memory(array, other)
+        or not array.flags.writeable
+        or not array.flags.c_contiguous
+    ):
+        return np.array(array, dtype=np.float32, order="C")
+    return array
+
+
+class _NormalEquations:
+    """The data and prior terms of Eq. 6 and the IRLS normal equations of Eq. 8.
+
+    Holds the blurred frame ``B`` (float32, ``(H, W, C)``), the operator, the current data
+    weights (:meth:`set_weights`) and prior weights (:meth:`prior_term`), and the residual
+    ``B - A I`` of the last :meth:`data_term` call.
+    """
+
+    def __init__(self, blurred3, shape, operator, alpha, exponent, epsilon, beta):
+        self.b3, self.shape, self.operator = blurred3, shape, operator
+        self.alpha, self.exponent, self.epsilon = float(alpha), float(exponent), float(epsilon)
+        self.gram = getattr(operator, "gram", None)  # A^T W^2 A in one pass, if offered
+        self.beta3 = None
+        if beta is not None:
+            self.beta3 = np.ascontiguousarray(np.broadcast_to(beta[..., None], blurred3.shape))
+            self.anchored = np.empty_like(blurred3)  # beta * p, reused by every CG step
+        self.wx = np.empty_like(blurred3)
+        self.wy = np.empty_like(blurred3)
+        self.residual = np.empty_like(blurred3)
+        rows, channels = blurred3.shape[0], blurred3.shape[2]
+        self.partial = np.empty((rows, 1), np.float64)
+        self.channel_partial = np.empty((rows, channels), np.float64)
+
+    def forward(self, image3d):
+        image = self.operator.forward(image3d.reshape(self.shape))
+        return _as_3d(np.asarray(image, dtype=np.float32))
+
+    def adjoint(self, image3d):
+        image = self.operator.adjoint(image3d.reshape(self.shape))
+        return _as_3d(np.asarray(image, dtype=np.float32))
+
+    def set_weights(self, w) -> None:
+        """Data weights ``w``: ``W^2``, the right-hand side ``A^T W^2 B (+ beta B)``, its norm."""
+        self.w = w
+        self.squared = np.ascontiguousarray(w * w, dtype=np.float32)
+        self.unit_weights = bool(np.all(self.squared == 1))
+        weighted_b = self.b3.copy()
+        _scale_pixels(weighted_b, self.squared)
+        self.rhs = np.array(self.adjoint(weighted_b), dtype=np.float32, order="C")
+        if self.beta3 is not None:
+            self.rhs += self.beta3 * self.b3
+        norm = np.sqrt(np.einsum("ijc,ijc->c", self.rhs, self.rhs, dtype=np.float64))
+        self.rhs_norm = np.where(norm > 0, norm, 1.0)
+
+    def apply(self, p3, row_dots):
+        """``(A^T W^2 A + D^T rho D + beta) p``; the row sums of ``p * (that)`` to ``row_dots``."""
+        if self.gram is not None:
+            squared = None if self.unit_weights else self.squared.reshape(self.shape[:2])
+            q = self.gram(p3.reshape(self.shape), squared)
+        else:
+            ap = self.forward(p3)
+            if not self.unit_weights:
+                ap = _owned(ap, p3)
+                _scale_pixels(ap, self.squared)
+            q = self.adjoint(ap)
+        q = _owned(_as_3d(np.asarray(q)), p3)
+        if self.beta3 is not None:
+            np.multiply(self.beta3, p3, out=self.anchored)
+            q += self.anchored
+        add_weighted_laplacian(p3, self.wx, self.wy, q, row_dots)
+        return q
+
+    def data_term(self, estimate3d) -> float:
+        """``sum w^2 |B - A I|^2 (+ sum beta |I - B|^2)``; keeps ``B - A I`` in ``residual``."""
+        reblurred = np.ascontiguousarray(self.forward(estimate3d))
+        _residual(self.b3, reblurred, self.squared, self.residual, self.partial)
+        data = float(self.partial.sum())
+        if self.beta3 is not None:
+            difference = (estimate3d - self.b3) ** 2
+            data += float(np.einsum("ijc,ijc->", self.beta3, difference, dtype=np.float64))
+        return data
+
+    def prior_term(self, estimate3d) -> float:
+        """``(2 / p) alpha sum h_eps(d I)``; sets the prior weights of Eq. 7 at ``I``."""
+        smoothness_weights(
+            estimate3d, self.alpha, self.exponent, self.epsilon, self.wx, self.wy, self.partial
+        )
+        return 2.0 * self.alpha / self.exponent * float(self.partial.sum())
+
+    def start_residual(self, estimate3d):
+        """``b - M I = A^T W^2 (B - A I) - D^T rho D I (+ beta (B - I))``, from ``residual``.
+
+        Overwrites ``residual`` (scaled by ``W^2``).
+        """
+        if not self.unit_weights:
+            _scale_pixels(self.residual, self.squared)
+        start = np.array(self.adjoint(self.residual), dtype=np.float32, order="C")
+        correction = np.zeros_like(start)
+        add_weighted_laplacian(estimate3d, self.wx, self.wy, correction, self.channel_partial)
+        start -= correction
+        if self.beta3 is not None:
+            start += self.beta3 * (self.b3 - estimate3d)
+        return start
+
+    def energy(self, iteration, estimate3d, relative) -> IrlsIterate:
+        """Both terms at ``estimate3d`` (which also sets the next iteration's prior weights)."""
+        data = self.data_term(estimate3d)
+        prior = self.prior_term(estimate3d)
+        mean = float(self.w.mean())
+        return IrlsIterate(iteration, data + prior, data, prior, mean, relative)
 
 
 def deblur_irls(
@@ -294,7 +289,8 @@ def deblur_irls(
     num_cg: int = 25,
     update_weights: Callable | None = None,
     anchor: np.ndarray | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    initial: np.ndarray | None = None,
+    progress: ProgressCallback | None = None,
 ) -> DeblurResult:
     """Deblur ``blurred`` by IRLS on a weighted least-squares data term and ``|d I|^p`` prior.
 
@@ -345,8 +341,12 @@ def deblur_irls(
         ``beta(x) >= 0``: adds ``sum_x beta(x) || I(x) - B(x) ||^2`` to the energy (and
         ``diag(beta)`` to the normal equations), which keeps the estimate near the blurred
         frame where the blur model is not trusted; none by default.
-    progress : callable, optional
-        ``progress(completed, num_irls)`` after each IRLS iteration.
+    initial : ndarray, shape of ``blurred``, optional
+        Starting estimate ``I^0`` (a warm start, e.g. the other view's result warped into
+        this one); the blurred frame by default. Only the starting point changes: the
+        energy, the weights' first evaluation and every iteration use it in place of ``B``.
+    progress : ProgressCallback, optional
+        Receives ``Progress("IRLS", completed, num_irls)`` after each IRLS iteration.
 
     Returns
     -------
@@ -377,143 +377,61 @@ def deblur_irls(
         return _deblur(
             blurred,
             operator,
-            weights,
-            alpha,
-            exponent,
-            epsilon,
-            num_irls,
-            num_cg,
-            update_weights,
-            anchor,
-            progress,
+            weights=weights,
+            settings=(alpha, exponent, epsilon),
+            num_irls=int(num_irls),
+            num_cg=int(num_cg),
+            update_weights=update_weights,
+            anchor=anchor,
+            initial=initial,
+            progress=progress,
         )
 
 
 def _deblur(
     blurred,
     operator,
+    *,
     weights,
-    alpha,
-    exponent,
-    epsilon,
+    settings,
     num_irls,
     num_cg,
     update_weights,
     anchor,
+    initial,
     progress,
 ) -> DeblurResult:
-    """The body of :func:`deblur_irls` on validated arguments."""
+    """The body of :func:`deblur_irls` on validated arguments (``settings``: alpha, p, eps)."""
     shape = blurred.shape
     plane = shape[:2]
-    b3 = _as_3d(np.array(blurred, dtype=np.float32, order="C"))
-    if not np.all(np.isfinite(b3)):
-        raise InputError("blurred contains NaN or infinite values")
+    b3 = _check_image(blurred, shape, "blurred")
     w = np.ones(plane, np.float32) if weights is None else _check_weights(weights, plane, "weights")
-    beta = None
-    if anchor is not None:
-        beta = np.asarray(anchor, dtype=np.float32)
-        if beta.shape != plane or not np.all(np.isfinite(beta) & (beta >= 0)):
-            raise InputError(f"anchor must be finite, >= 0 and of shape {plane}")
-        beta = np.ascontiguousarray(beta) if beta.any() else None
-    if beta is not None:
-        beta3 = np.ascontiguousarray(np.broadcast_to(beta[..., None], b3.shape))
-        anchored = np.empty_like(b3)  # beta * p, reused by every CG step
-
-    def forward(image3d):
-        return _as_3d(np.asarray(operator.forward(image3d.reshape(shape)), dtype=np.float32))
-
-    def adjoint(image3d):
-        return _as_3d(np.asarray(operator.adjoint(image3d.reshape(shape)), dtype=np.float32))
-
-    # Buffers reused across IRLS iterations.
-    rows = plane[0]
-    wx = np.empty_like(b3)
-    wy = np.empty_like(b3)
-    residual = np.empty_like(b3)
-    partial = np.empty((rows, 1), np.float64)
-    channel_partial = np.empty((rows, b3.shape[2]), np.float64)
-    prior_scale = 2.0 * alpha / exponent
-
-    def weights_state(w):
-        squared = np.ascontiguousarray(w * w, dtype=np.float32)
-        weighted_b = b3.copy()
-        _scale_pixels(weighted_b, squared)
-        rhs = np.array(adjoint(weighted_b), dtype=np.float32, order="C")
-        if beta is not None:
-            rhs += beta3 * b3
-        rhs_norm = np.sqrt(np.einsum("ijc,ijc->c", rhs, rhs, dtype=np.float64))
-        return squared, bool(np.all(squared == 1)), rhs, np.where(rhs_norm > 0, rhs_norm, 1.0)
-
-    def normal(p3, row_dots):  # (A^T W^2 A + alpha D^T rho D + beta) p, and p . (that) per row
-        ap = forward(p3)
-        if not unit_weights:
-            if np.may_share_memory(ap, p3) or not ap.flags.writeable or not ap.flags.c_contiguous:
-                ap = np.array(ap, order="C")
-            _scale_pixels(ap, squared)
-        q = adjoint(ap)
-        if np.may_share_memory(q, p3) or not q.flags.writeable or not q.flags.c_contiguous:
-            q = np.array(q, order="C")
-        if beta is not None:
-            np.multiply(beta3, p3, out=anchored)
-            q += anchored
-        _add_weighted_laplacian(p3, wx, wy, q, row_dots)
-        return q
-
-    def data_term(estimate3d):
-        reblurred = forward(estimate3d)
-        _residual(b3, np.ascontiguousarray(reblurred), squared, residual, partial)
-        data = float(partial.sum())
-        if beta is not None:
-            data += float(np.einsum("ijc,ijc->", beta3, (estimate3d - b3) ** 2, dtype=np.float64))
-        return data
-
-    def prior_term_and_weights(estimate3d):
-        _smoothness_weights(
-            estimate3d, float(alpha), float(exponent), float(epsilon), wx, wy, partial
-        )
-        return prior_scale * float(partial.sum())
-
-    squared, unit_weights, rhs, rhs_norm = weights_state(w)
-    estimate = b3.copy()
-    data = data_term(estimate)
-    prior = prior_term_and_weights(estimate)
-    history = [IrlsIterate(0, data + prior, data, prior, float(w.mean()), None)]
+    system = _NormalEquations(b3, shape, operator, *settings, _check_anchor(anchor, plane))
+    system.set_weights(w)
+    estimate = b3.copy() if initial is None else _check_image(initial, shape, "initial")
+    history = [system.energy(0, estimate, None)]
     weights_history = [] if update_weights is not None else None
-
-    for n in range(int(num_irls)):
+    for n in range(num_irls):
         if n >= 1 and update_weights is not None:
             new = update_weights(
                 n,
                 _read_only(b3.reshape(shape)),
-                _read_only(residual.reshape(shape)),
+                _read_only(system.residual.reshape(shape)),
                 _read_only(estimate.reshape(shape)),
                 _read_only(w),
             )
             w = _check_weights(new, plane, "update_weights result")
-            squared, unit_weights, rhs, rhs_norm = weights_state(w)
+            system.set_weights(w)
         if weights_history is not None:
             weights_history.append(w)
-        # Warm start: b - M I = A^T W^2 (B - A I) - alpha D^T rho D I, with B - A I at hand.
-        if not unit_weights:
-            _scale_pixels(residual, squared)
-        start = np.array(adjoint(residual), dtype=np.float32, order="C")
-        correction = np.zeros_like(start)
-        _add_weighted_laplacian(estimate, wx, wy, correction, channel_partial)
-        start -= correction
-        if beta is not None:
-            start += beta3 * (b3 - estimate)
+        # Warm start from I^{n-1}: the residual b - M I from B - A I at hand (no extra A I).
+        start = system.start_residual(estimate)
         estimate, norms, _ = solve(
-            normal, rhs, estimate, num_iterations=int(num_cg), rtol=None, residual=start
+            system.apply, system.rhs, estimate, num_iterations=num_cg, rtol=None, residual=start
         )
-        relative = norms[-1] / rhs_norm
-        data = data_term(estimate)
-        prior = prior_term_and_weights(estimate)
-        history.append(
-            IrlsIterate(n + 1, data + prior, data, prior, float(w.mean()), float(relative.max()))
-        )
-        if progress is not None:
-            progress(n + 1, int(num_irls))
-
+        relative = float((norms[-1] / system.rhs_norm).max())
+        history.append(system.energy(n + 1, estimate, relative))
+        report(progress, "IRLS", n + 1, num_irls)
     return DeblurResult(
         image=estimate.reshape(shape),
         weights=w,

@@ -1,0 +1,188 @@
+"""The sparse gradient prior of Eq. 6-8: forward differences and their IRLS weights.
+
+Conventions
+-----------
+Gradients are forward differences, ``dx I (y, x) = I (y, x + 1) - I (y, x)`` and
+``dy I (y, x) = I (y + 1, x) - I (y, x)``, set to 0 in the last column (``dx``) and the last
+row (``dy``) (Neumann boundary), per channel. The IRLS weights of Eq. 7 are
+``alpha * max(|d I|, epsilon)^(p - 2)`` per pixel, channel and direction; they include
+``alpha`` and are 0 where the differences are identically zero.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from stereodeblur.deconv.cg import _as_3d, by_rows, row_channel_dots
+from stereodeblur.errors import InputError
+
+# --- gradients ---------------------------------------------------------------------------
+
+
+@numba.njit(parallel=True, cache=True)
+def _differences(image, dx, dy):  # pragma: no cover - compiled
+    rows, cols, channels = image.shape
+    for i in numba.prange(rows):
+        for j in range(cols):
+            for c in range(channels):
+                v = image[i, j, c]
+                dx[i, j, c] = image[i, j + 1, c] - v if j < cols - 1 else 0.0
+                dy[i, j, c] = image[i + 1, j, c] - v if i < rows - 1 else 0.0
+
+
+@numba.njit(parallel=True, cache=True)
+def _differences_adjoint(dx, dy, out):  # pragma: no cover - compiled
+    rows, cols, channels = out.shape
+    for i in numba.prange(rows):
+        for j in range(cols):
+            for c in range(channels):
+                acc = 0.0
+                if j < cols - 1:
+                    acc -= dx[i, j, c]
+                if j > 0:
+                    acc += dx[i, j - 1, c]
+                if i < rows - 1:
+                    acc -= dy[i, j, c]
+                if i > 0:
+                    acc += dy[i - 1, j, c]
+                out[i, j, c] = acc
+
+
+def gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward differences ``D I = (dx I, dy I)``, zero in the last column / row.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, C)
+
+    Returns
+    -------
+    dx, dy : ndarray
+        Same shape as ``image``; float64 for float64 input, float32 otherwise.
+    """
+    image = np.asarray(image)
+    if image.ndim not in (2, 3):
+        raise InputError(f"image must have shape (H, W) or (H, W, C), got {image.shape}")
+    dtype = np.float64 if image.dtype == np.float64 else np.float32
+    image = np.ascontiguousarray(image, dtype=dtype)
+    dx = np.empty_like(image)
+    dy = np.empty_like(image)
+    _differences(_as_3d(image), _as_3d(dx), _as_3d(dy))
+    return dx, dy
+
+
+def gradient_adjoint(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """Adjoint ``D^T (gx, gy) = dx^T gx + dy^T gy`` of :func:`gradient`.
+
+    Entries of ``dx`` in the last column and of ``dy`` in the last row are ignored (the
+    forward differences there are identically zero).
+    """
+    dx = np.asarray(dx)
+    dy = np.asarray(dy)
+    if dx.shape != dy.shape or dx.ndim not in (2, 3):
+        raise InputError(f"dx and dy must share shape (H, W[, C]), got {dx.shape}, {dy.shape}")
+    dtype = np.float64 if np.float64 in (dx.dtype, dy.dtype) else np.float32
+    dx = np.ascontiguousarray(dx, dtype=dtype)
+    dy = np.ascontiguousarray(dy, dtype=dtype)
+    out = np.empty_like(dx)
+    _differences_adjoint(_as_3d(dx), _as_3d(dy), _as_3d(out))
+    return out
+
+
+# --- IRLS weights (Eq. 7) and the weighted Laplacian of Eq. 8 ---------------------------
+
+
+def smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial) -> None:
+    """Eq. 7 weights of ``image`` into ``wx``, ``wy``; row sums of ``h_eps(d I)`` to ``partial``."""
+    by_rows(_smoothness_rows, image, image, alpha, exponent, epsilon, wx, wy, partial)
+
+
+def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
+    """``out += D^T diag(wx, wy) D x``; the row sums of ``x * out`` per channel to ``partial``."""
+    by_rows(_laplacian_rows, x, x, wx, wy, out, partial)
+
+
+@numba.njit(cache=True, nogil=True)
+def _smoothness_rows(
+    first, last, image, alpha, exponent, epsilon, wx, wy, partial
+):  # pragma: no cover
+    """Eq. 7 weights ``alpha * max(|d I|, eps)^(p - 2)`` and row sums of ``h_eps(d I)``.
+
+    ``h_eps(c) = |c|^p`` for ``|c| >= eps`` and ``(p/2) eps^(p-2) c^2 + (1 - p/2) eps^p``
+    below: the function whose IRLS majoriser the weights are. The weights are 0 in the
+    last column (``wx``) and row (``wy``), where the differences are identically zero.
+    """
+    rows, cols, channels = image.shape
+    size = cols * channels
+    x2 = image.reshape(rows, size)
+    wx2 = wx.reshape(rows, size)
+    wy2 = wy.reshape(rows, size)
+    power = np.float32(exponent - 2.0)
+    floor = np.float32(epsilon)
+    scale = np.float32(alpha)
+    rho_floor = floor**power
+    small_scale = 0.5 * exponent * epsilon ** (exponent - 2.0)
+    small_offset = (1.0 - 0.5 * exponent) * epsilon**exponent
+    for i in range(first, last):
+        acc = 0.0
+        for k in range(size - channels):  # x direction: right neighbour k + channels
+            g = abs(x2[i, k + channels] - x2[i, k])
+            g64 = np.float64(g)
+            if g >= floor:
+                rho = g**power
+                acc += np.float64(rho) * g64 * g64
+            else:
+                rho = rho_floor
+                acc += small_scale * g64 * g64 + small_offset
+            wx2[i, k] = scale * rho
+        for k in range(size - channels, size):
+            wx2[i, k] = 0.0
+        if i < rows - 1:
+            for k in range(size):  # y direction: the next row
+                g = abs(x2[i + 1, k] - x2[i, k])
+                g64 = np.float64(g)
+                if g >= floor:
+                    rho = g**power
+                    acc += np.float64(rho) * g64 * g64
+                else:
+                    rho = rho_floor
+                    acc += small_scale * g64 * g64 + small_offset
+                wy2[i, k] = scale * rho
+        else:
+            for k in range(size):
+                wy2[i, k] = 0.0
+        partial[i, 0] = acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _laplacian_rows(first, last, x, wx, wy, out, partial):  # pragma: no cover - compiled
+    """``out += dx^T (wx * dx x) + dy^T (wy * dy x)`` (``wx``, ``wy`` include alpha).
+
+    Also writes the row sums of ``x * out`` per channel into ``partial`` (for CG).
+    """
+    rows, cols, channels = x.shape
+    size = cols * channels
+    x2 = x.reshape(rows, size)
+    wx2 = wx.reshape(rows, size)
+    wy2 = wy.reshape(rows, size)
+    out2 = out.reshape(rows, size)
+    for i in range(first, last):
+        row = np.int64(i)
+        up = max(row - 1, 0)  # at the borders the neighbour is the pixel itself: d = 0
+        down = min(row + 1, rows - 1)
+        x_row = x2[row]
+        x_up = x2[up]
+        x_down = x2[down]
+        wy_up = wy2[up]
+        wy_row = wy2[row]
+        wx_row = wx2[row]
+        o = out2[row]
+        for k in range(size):
+            v = x_row[k]
+            o[k] += wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
+        for k in range(channels, size):
+            flux = wx_row[k - channels] * (x_row[k] - x_row[k - channels])
+            o[k] += flux
+            o[k - channels] -= flux
+        row_channel_dots(x_row, o, channels, partial, row)
