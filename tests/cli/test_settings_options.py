@@ -1,5 +1,6 @@
 """DeblurSettings <-> options in one place: round trips, defaults and limits."""
 
+import numpy as np
 import pytest
 
 from stereodeblur.cli import build_parser
@@ -63,3 +64,26 @@ def test_checksums_see_a_changed_byte(tiny_scene):
     path = tiny_scene / "camera.json"
     path.write_bytes(path.read_bytes() + b" ")
     assert tree_checksums(tiny_scene) != before
+
+
+def test_library_parameters_map_to_their_options():
+    from stereodeblur.cli.settings_options import option_for
+
+    assert option_for("num_samples") == "--samples"
+    assert option_for("boundary_weights") == "--boundary-weights"
+    assert option_for("frame_rate") == "--frame-rate"
+    assert option_for("no_such_parameter") is None
+    assert option_for(None) is None
+
+
+def test_an_input_error_naming_a_parameter_points_at_the_option(tmp_path, capsys):
+    from stereodeblur.cli import main
+    from tests.io.stereo_layouts import write_video_pair
+
+    rng = np.random.default_rng(0)
+    frames = [rng.random((24, 32, 3)) for _ in range(3)]
+    K = [[40.0, 0.0, 15.5], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]]
+    left, right, _ = write_video_pair(tmp_path, frames, frames, np.array(K), 0.1)
+    assert main(["deblur", str(left), str(right), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "(option --calib)" in err[0], err

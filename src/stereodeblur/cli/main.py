@@ -12,6 +12,7 @@ from .demo import add_parser as add_demo
 from .kernels import add_parser as add_kernels
 from .render_view import add_parser as add_render_view
 from .sceneflow import add_parser as add_sceneflow
+from .settings_options import option_for
 from .synth import add_parser as add_synth
 
 # Each adds its command's parser (and the function that runs it) to the subparsers.
@@ -54,8 +55,9 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except INPUT_ERRORS as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
-        if isinstance(err, InputError) and err.parameter:  # the option that sets it
-            message += f" (option --{err.parameter.replace('_', '-')})"
+        option = option_for(err.parameter) if isinstance(err, InputError) else None
+        if option is not None:  # library errors name parameters; point at the option
+            message += f" (option {option})"
         print(f"stereodeblur: error: {message}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:

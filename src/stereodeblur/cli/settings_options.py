@@ -188,6 +188,17 @@ def settings_from_arguments(args: argparse.Namespace, base=None):
     return dataclasses.replace(settings, **{name: values[name] for name in args.settings_fields})
 
 
+def option_for(parameter: str | None) -> str | None:
+    """The option that sets library parameter ``parameter`` (a settings field or an input
+    parameter such as ``exposure``), or None."""
+    from .sources import SOURCE_OPTIONS
+
+    if parameter == "boundary_weights":
+        return "--boundary-weights"
+    flags = {o.field: o.flag for o in _options()}
+    return flags.get(parameter) or SOURCE_OPTIONS.get(parameter)
+
+
 def arguments_for(settings) -> list[str]:
     """Command-line options that give ``settings`` (fields without an option excepted)."""
     out: list[str] = []

@@ -7,6 +7,15 @@ import argparse
 from .base import positive_number
 from .printer import print_warnings
 
+# The library parameter (``InputError.parameter``) behind each input option.
+SOURCE_OPTIONS = {
+    "calib": "--calib",
+    "exposure": "--exposure",
+    "frame_rate": "--frame-rate",
+    "color": "--color",
+    "sequence": "--sequence",
+}
+
 
 def add_source_options(parser: argparse.ArgumentParser) -> None:
     """``--calib``, ``--exposure``, ``--frame-rate``, ``--color``, ``--sequence``."""
