@@ -367,5 +367,5 @@ def _fill_gaps(depth: np.ndarray, index: np.ndarray) -> None:
 
 
 def point_cloud_path(root: str | os.PathLike, view: str, index: int) -> Path:
-    """Where ``--point-cloud`` puts the cloud of frame ``index`` of ``view``."""
+    """Where a clip run with point clouds puts the cloud of frame ``index`` of ``view``."""
     return Path(root) / "pointcloud" / view / f"{int(index):06d}.ply"
