@@ -234,9 +234,14 @@ def test_frames_below_the_minimum_size_name_the_file(side, tmp_path, capfd):
     assert "left_t" not in line
 
 
-def test_minimum_size_is_accepted(tmp_path):
-    scene = write_tiny_scene(tmp_path / "scene", num_frames=2, size=(MIN_FRAME_SIZE,) * 2)
+def test_minimum_size_is_accepted_and_deblurs(tmp_path, capfd):
+    scene = write_tiny_scene(tmp_path / "scene", num_frames=3, size=(MIN_FRAME_SIZE,) * 2)
     assert open_scene(scene).shape == (MIN_FRAME_SIZE, MIN_FRAME_SIZE)
+    # The whole pipeline (scene flow, dense flow, census) runs at the minimum size.
+    out = tmp_path / "out"
+    code, lines = _cli(capfd, "deblur", scene, "-o", out, "--frames", "2", "--views", "left", "-q")
+    assert code == 0, lines
+    assert read_png(out / "left" / "000002.png").shape == (MIN_FRAME_SIZE, MIN_FRAME_SIZE, 3)
 
 
 def test_small_kitti_and_video_frames_are_refused(tmp_path):

@@ -217,8 +217,11 @@ def open_video_pair(
 ) -> VideoSource:
     """Open two rectified videos as a stereo clip, with the stereo calibration ``calib``.
 
-    The videos must have the same size and frame rate; when their frame counts differ
-    the extra frames of the longer one are ignored (with a warning).
+    The videos must have the same size and frame rate and at least two frames each.
+    When their frame counts differ the extra frames of the longer one are ignored and
+    the source's ``warnings`` says so (front ends print it: the user must see that
+    frames were dropped). A still image (PNG, JPEG, ...) or a file FFmpeg cannot open
+    is refused in one line, with FFmpeg's own log kept off the terminal.
     """
     left, right = Path(left), Path(right)
     if calib is None:
