@@ -246,12 +246,29 @@ def pairwise_tables(
             g = np.stack([d0, x1, y1, d1], axis=-1)  # (e, C, K, 4)
             g = np.where(np.isfinite(g), g, 1e6)
             preds.append(g)
-        diff = np.abs(preds[0][:, :, None] - preds[1][:, None, :]).sum(axis=-1).mean(axis=-1)
-        out[sl] = np.minimum(diff, truncation)
+        out[sl] = _truncated_distances(preds[0], preds[1], float(truncation))
     weight = smoothness * graph.boundary_length
     if edge_weights is not None:
         weight = weight * np.asarray(edge_weights, dtype=np.float64)
     return out * weight[:, None, None]
+
+
+@numba.njit(cache=True, nogil=True)
+def _truncated_distances(a, b, truncation):
+    """``min(truncation, mean_k sum_f |a[e, i, k, f] - b[e, j, k, f]|)``, shape (E, C, C)."""
+    num, C, K, F = a.shape
+    out = np.empty((num, C, C))
+    for e in range(num):
+        for i in range(C):
+            for j in range(C):
+                total = 0.0
+                for k in range(K):
+                    s = 0.0
+                    for f in range(F):
+                        s += abs(a[e, i, k, f] - b[e, j, k, f])
+                    total += s
+                out[e, i, j] = min(total / K, truncation)
+    return out
 
 
 # --------------------------------------------------------------------------- alpha-expansion

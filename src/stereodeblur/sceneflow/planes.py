@@ -9,7 +9,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .prediction import group_sums, grouped
+from .prediction import grouped
 
 MIN_PLANE_PIXELS = 8
 
@@ -147,27 +147,7 @@ def _inlier_counts(groups, hyp, xc, yc, d, threshold, num_groups):
 
 def _irls_step(groups, num_groups, cur, ok, xc, yc, d, extent, *, scale, cutoff, ridge):
     """One Cauchy-weighted least-squares update of the planes ``cur`` (centred coordinates)."""
-    r = cur[groups, 0] * xc + cur[groups, 1] * yc + cur[groups, 2] - d
-    w = 1.0 / (1.0 + (r / scale) ** 2)
-    w = np.where(np.abs(r) < cutoff, w, 0.0)
-    m = group_sums(
-        groups,
-        num_groups,
-        np.stack(
-            [
-                w * xc * xc,
-                w * xc * yc,
-                w * xc,
-                w * yc * yc,
-                w * yc,
-                w,
-                w * xc * d,
-                w * yc * d,
-                w * d,
-            ],
-            axis=1,
-        ),
-    )
+    m = _weighted_moments(groups, num_groups, cur, xc, yc, d, float(scale), float(cutoff))
     wsum = m[:, 5]
     lam = ridge * np.maximum(wsum, 1e-9) / extent
     N = np.empty((num_groups, 3, 3))
@@ -182,3 +162,25 @@ def _irls_step(groups, num_groups, cur, ok, xc, yc, d, extent, *, scale, cutoff,
     N[~solvable] = np.eye(3)
     sol = np.linalg.solve(N, rhs[..., None])[..., 0]
     return np.where(solvable[:, None], sol, cur)
+
+
+@numba.njit(cache=True, nogil=True)
+def _weighted_moments(groups, num_groups, cur, xc, yc, d, scale, cutoff):
+    """Per group the sums of ``w (xc^2, xc yc, xc, yc^2, yc, 1, xc d, yc d, d)`` with the
+    Cauchy weights ``w`` of the residuals to ``cur`` (0 from ``cutoff`` on)."""
+    m = np.zeros((num_groups, 9))
+    for n in range(len(groups)):
+        k = groups[n]
+        r = cur[k, 0] * xc[n] + cur[k, 1] * yc[n] + cur[k, 2] - d[n]
+        a = r / scale
+        w = 1.0 / (1.0 + a * a) if abs(r) < cutoff else 0.0
+        m[k, 0] += w * xc[n] * xc[n]
+        m[k, 1] += w * xc[n] * yc[n]
+        m[k, 2] += w * xc[n]
+        m[k, 3] += w * yc[n] * yc[n]
+        m[k, 4] += w * yc[n]
+        m[k, 5] += w
+        m[k, 6] += w * xc[n] * d[n]
+        m[k, 7] += w * yc[n] * d[n]
+        m[k, 8] += w * d[n]
+    return m
