@@ -106,25 +106,25 @@ def test_adaptive_takes_the_blur_near_motion_boundaries_from_the_dense_flow(scen
     assert not np.array_equal(merged, homographies)
 
 
-def _spy(monkeypatch, function: str, keyword: str) -> list:
-    """Record the ``keyword`` argument of every call of ``pipeline.<function>``."""
-    from stereodeblur import pipeline
-
+def _spy(monkeypatch, module, function: str, keyword: str) -> list:
+    """Record the ``keyword`` argument of every call of ``module.<function>``."""
     seen = []
-    original = getattr(pipeline, function)
+    original = getattr(module, function)
 
     def spy(*args, **kwargs):
         seen.append(kwargs.get(keyword))
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, function, spy)
+    monkeypatch.setattr(module, function, spy)
     return seen
 
 
 def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
     import dataclasses
 
-    anchors = _spy(monkeypatch, "deblur_irls", "anchor")
+    from stereodeblur.pipeline import frame
+
+    anchors = _spy(monkeypatch, frame, "deblur_irls", "anchor")
     settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     hybrid = deblur_frame(scene, 1, settings=settings, motion=motion)
@@ -137,7 +137,9 @@ def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
 
 
 def test_the_operator_is_occlusion_aware_only_without_dense_flow_rows(scene, monkeypatch):
-    visibilities = _spy(monkeypatch, "build_operator", "visible")
+    from stereodeblur.pipeline import operator
+
+    visibilities = _spy(monkeypatch, operator, "build_operator", "visible")
     estimated = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
     deblur_frame(scene, 1, settings=estimated)  # with the dense flow's rows
     true = DeblurSettings(**FAST)  # true motion: no dense flow

@@ -1,0 +1,115 @@
+"""Seconds and peak memory of deblurring one 640x480 stereo frame as a whole process.
+
+Run from the repository root::
+
+    python benchmarks/bench_stereo_frame.py                  # spheres, 640x480, median of 3
+    python benchmarks/bench_stereo_frame.py --scene squares --repeats 5 --json out.json
+
+An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. Each
+repetition is a fresh Python process (``--child``) that imports the package, deblurs
+frame 1 of both views with the default settings (estimated scene flow, 70 samples,
+10 IRLS x 25 CG, one process: what ``stereodeblur deblur SCENE -o OUT --frames 1
+--views both --workers 1`` does) and writes the two frames. Reported: the median wall
+time of the processes, the largest peak resident memory (``ru_maxrss`` of the
+children), and per stage the median seconds the pipeline measured: reading, motion
+(scene flow, dense flow and trust, shared by both views), and per view the blur
+operator and the deconvolution. Issue 14's target: at most 10 s and 2 GiB per process,
+at most 3 s of deconvolution per view.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+VIEWS = ("left", "right")
+INDEX = 1
+
+
+def render(work: Path, name: str, size: tuple[int, int]) -> Path:
+    """The object scene ``name`` at ``size`` in ``work`` (rendered once)."""
+    from stereodeblur.synth.objects import make_object_scene
+    from stereodeblur.synth.planar import write_rendered_scene
+
+    root = work / f"{name}-{size[0]}x{size[1]}"
+    if not (root / "camera.json").is_file():
+        write_rendered_scene(make_object_scene(name, size=size), root, overwrite=True)
+    return root
+
+
+def child(scene_path: str, output: str) -> None:
+    """One stereo frame in this process; prints the stage timings as JSON."""
+    start = time.perf_counter()
+    from stereodeblur import pipeline
+    from stereodeblur.io.scene import SceneWriter, open_scene
+
+    scene = open_scene(scene_path)
+    stages = {}
+    if hasattr(pipeline, "deblur_stereo_frame"):
+        stereo = pipeline.deblur_stereo_frame(scene, INDEX, views=VIEWS)
+        frames = stereo.frames
+        stages.update(stereo.timings)
+    else:  # the code before the frame window: one deblur_frame per view
+        frames = {view: pipeline.deblur_frame(scene, INDEX, view=view) for view in VIEWS}
+    writer = SceneWriter(output, scene.info, overwrite=True)
+    for view, result in frames.items():
+        writer.write_frame(view, INDEX, result.image)
+        for stage, seconds in result.timings.items():
+            if stage != "motion" or "motion" not in stages:  # the stereo frame's is shared
+                stages[f"{stage} {view}"] = seconds
+    stages["process"] = time.perf_counter() - start
+    stages["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps(stages))
+
+
+def run(scene: Path, output: Path, repeats: int) -> dict:
+    """Median wall seconds and stage timings of ``repeats`` child processes."""
+    walls, runs = [], []
+    for _ in range(repeats):
+        command = [sys.executable, __file__, "--child", str(scene), str(output)]
+        start = time.perf_counter()
+        done = subprocess.run(command, check=True, capture_output=True, text=True)
+        walls.append(time.perf_counter() - start)
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    stages = {key: round(statistics.median(r[key] for r in runs), 2) for key in runs[0]}
+    return {
+        "scene": scene.name,
+        "repeats": repeats,
+        "wall_s": round(statistics.median(walls), 2),
+        "wall_all_s": [round(w, 2) for w in walls],
+        "peak_rss_mib": round(peak),
+        "stages_s": {k: v for k, v in stages.items() if k != "peak_rss_mib"},
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="spheres", help="object scene name")
+    parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "sd-bench")
+    parser.add_argument("--json", type=Path, help="also write the result here")
+    parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        child(*args.child)
+        return
+    width, height = (int(v) for v in args.size.lower().split("x"))
+    args.work.mkdir(parents=True, exist_ok=True)
+    scene = render(args.work, args.scene, (width, height))
+    result = run(scene, args.work / f"{scene.name}-out", args.repeats)
+    print(json.dumps(result, indent=2))
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

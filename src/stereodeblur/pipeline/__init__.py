@@ -1,0 +1,113 @@
+"""Deblur one stereo frame: orchestration of motion, blur operator and deconvolution.
+
+The stages, each a function from typed values to a typed value:
+
+1. :func:`read_window`: the :class:`FrameWindow`, every frame the stereo frame's
+   deblurring needs, each read once;
+2. :func:`stereo_motion`: the :class:`StereoMotion`, computed once for both views;
+3. :func:`view_operator`: a view's blur operator (:class:`ViewOperator`);
+4. :func:`data_terms`: its data weights, anchor, trust and prior weight
+   (:class:`DataTerms`);
+5. :func:`solve`: the deconvolution of Eq. 6.
+
+:func:`deblur_stereo_frame` runs them for both views, :func:`deblur_frame` for one.
+Frame i is deblurred with the motion from frame i to i + 1; the last frame of a clip uses
+the motion to frame i - 1 (:func:`neighbour_of`). Motion sources are orthogonal to kernel
+types, so every variant of the paper's tables is a combination of ``motion_source`` and
+``kernels`` (:class:`DeblurSettings`):
+
+- ``motion_source='sceneflow'`` (default): piecewise-rigid scene flow estimated from the
+  blurred stereo frames (left view; the right view's by :func:`to_right_view`); 2D
+  displacements are its projection. The views' dense optical flow comes along
+  (``FrameMotion.boundary_flow``; the left view's to the neighbour is the estimate's
+  initial flow): near motion boundaries the adaptive boundary handling takes the blur from
+  it (:func:`boundary_motion`).
+- ``motion_source='gt'``: planes and motions fitted per superpixel (cut where the gt
+  jumps) to the scene's gt/disparity (frame i and its neighbour) and gt/flow; 2D
+  displacements taken directly from gt/flow (:func:`gt_needs` lists the files).
+- ``motion_source='initial-flow'``: the dense optical flow of the view alone
+  (monocular); only ``kernels='displacement'`` can use it.
+"""
+
+from ..settings import (
+    BOUNDARY_MASKS,
+    BOUNDARY_WEIGHTS,
+    KERNELS,
+    MOTION_SOURCES,
+    PAPER_ALPHA,
+    DeblurSettings,
+)
+from .frame import (
+    FrameResult,
+    StereoFrameResult,
+    deblur_frame,
+    deblur_stereo_frame,
+    deblur_view,
+    solve,
+)
+from .motion import (
+    FrameMotion,
+    StereoMotion,
+    dense_flow,
+    frame_motion,
+    invert_flow,
+    invert_known_flow,
+    sceneflow_motion,
+    stereo_motion,
+    to_right_view,
+    view_dense_flow,
+    with_boundary_flow,
+)
+from .operator import ViewOperator, boundary_motion, build_operator, view_operator, visibility
+from .weights import DataTerms, data_terms, frame_trust, resolve_alpha
+from .window import (
+    FrameWindow,
+    check_gt,
+    gt_needs,
+    neighbour_of,
+    other_side,
+    read_window,
+    uses_boundary_flow,
+)
+
+__all__ = [
+    "BOUNDARY_MASKS",
+    "BOUNDARY_WEIGHTS",
+    "KERNELS",
+    "MOTION_SOURCES",
+    "PAPER_ALPHA",
+    "DataTerms",
+    "DeblurSettings",
+    "FrameMotion",
+    "FrameResult",
+    "FrameWindow",
+    "StereoFrameResult",
+    "StereoMotion",
+    "ViewOperator",
+    "boundary_motion",
+    "build_operator",
+    "check_gt",
+    "data_terms",
+    "deblur_frame",
+    "deblur_stereo_frame",
+    "deblur_view",
+    "dense_flow",
+    "frame_motion",
+    "frame_trust",
+    "gt_needs",
+    "invert_flow",
+    "invert_known_flow",
+    "neighbour_of",
+    "other_side",
+    "read_window",
+    "resolve_alpha",
+    "sceneflow_motion",
+    "solve",
+    "stereo_motion",
+    "to_right_view",
+    "uses_boundary_flow",
+    "view_dense_flow",
+    "view_operator",
+    "visibility",
+    "with_boundary_flow",
+]

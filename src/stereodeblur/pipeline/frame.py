@@ -1,0 +1,212 @@
+"""Deblur one frame: window -> motion -> operator -> data terms -> solve.
+
+:func:`deblur_stereo_frame` reads the frame window once and computes the motion once for
+both views; :func:`deblur_frame` is the same for one view.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..deconv.irls import DeblurResult, deblur_irls
+from ..progress import ProgressCallback, prefixed, report
+from ..settings import DeblurSettings
+from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
+from .operator import view_operator
+from .weights import DataTerms, data_terms
+from .window import VIEWS, FrameWindow, check_gt, check_views, read_window
+
+if TYPE_CHECKING:
+    from ..io.protocol import StereoScene
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """A deblurred frame with what produced it.
+
+    ``alpha`` is the prior weight used; ``weight_steps`` the boundary-weight updates
+    (:class:`~stereodeblur.deconv.weights.WeightsStep`: weights and the residual norm
+    they came from, per IRLS iteration), empty with fixed weights; ``trust`` the trust in
+    the blur model per pixel (``boundary_weights='adaptive'``, else None). ``timings``:
+    seconds of ``'motion'`` (reading the frames included; from :func:`deblur_stereo_frame`
+    an equal share of the stereo frame's), ``'operator'`` and ``'deconvolution'`` (data
+    weights, trust and alpha included).
+    """
+
+    index: int
+    view: str
+    blurred: np.ndarray
+    result: DeblurResult
+    motion: FrameMotion
+    timings: dict = field(default_factory=dict)
+    alpha: float | None = None
+    weight_steps: tuple = ()
+    trust: np.ndarray | None = None
+
+    @property
+    def image(self) -> np.ndarray:
+        return np.clip(self.result.image, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class StereoFrameResult:
+    """The deblurred views of one stereo frame, from one window and one motion.
+
+    ``frames`` (dict) maps each requested view to its :class:`FrameResult`; ``timings`` holds
+    the seconds of the shared stages, ``'read'`` and ``'motion'``.
+    """
+
+    index: int
+    frames: dict
+    motion: StereoMotion
+    timings: dict = field(default_factory=dict)
+
+
+def solve(
+    blurred: np.ndarray,
+    operator,
+    terms: DataTerms,
+    settings: DeblurSettings,
+    *,
+    weights: np.ndarray | None = None,
+    progress: ProgressCallback | None = None,
+) -> DeblurResult:
+    """Eq. 6 by IRLS (:func:`~stereodeblur.deconv.irls.deblur_irls`) with ``terms``.
+
+    ``weights`` replaces ``terms.weights`` as the initial data weights.
+    """
+    return deblur_irls(
+        blurred,
+        operator,
+        weights=terms.weights if weights is None else weights,
+        alpha=terms.alpha,
+        num_irls=settings.num_irls,
+        num_cg=settings.num_cg,
+        update_weights=terms.update,
+        anchor=terms.anchor,
+        progress=_irls_progress(progress),
+    )
+
+
+def _irls_progress(progress: ProgressCallback | None):
+    """``progress`` for ``deblur_irls``, which is moving from ``progress(done, total)`` to a
+    :data:`~stereodeblur.progress.ProgressCallback` (both are passed on as ``'IRLS'``)."""
+    if progress is None:
+        return None
+
+    def forward(*args):
+        if len(args) == 1:
+            progress(args[0])
+        else:
+            report(progress, "IRLS", *args)
+
+    return forward
+
+
+def deblur_view(
+    scene: StereoScene,
+    window: FrameWindow,
+    motion: FrameMotion,
+    settings: DeblurSettings,
+    *,
+    weights: np.ndarray | None = None,
+    progress: ProgressCallback | None = None,
+) -> FrameResult:
+    """Deblur one view of ``window`` with its ``motion``: operator, data terms, solve."""
+    view, timings = motion.view, {}
+    check_motion(motion, window, view)
+    start = time.perf_counter()
+    report(progress, f"blur operator ({settings.kernels})")
+    operator = view_operator(motion, window.exposure, settings)
+    timings["operator"] = time.perf_counter() - start
+    start = time.perf_counter()  # the data terms count as part of the deconvolution
+    terms = data_terms(scene, window, view, operator, settings)
+    blurred = window.blurred(view)
+    result = solve(blurred, operator.operator, terms, settings, weights=weights, progress=progress)
+    timings["deconvolution"] = time.perf_counter() - start
+    return FrameResult(
+        window.index,
+        view,
+        blurred,
+        result,
+        operator.motion,
+        timings,
+        terms.alpha,
+        terms.steps,
+        terms.trust,
+    )
+
+
+def deblur_frame(
+    scene: StereoScene,
+    index: int,
+    *,
+    view: str = "left",
+    settings: DeblurSettings | None = None,
+    weights: np.ndarray | None = None,
+    motion: FrameMotion | None = None,
+    progress: ProgressCallback | None = None,
+) -> FrameResult:
+    """Deblur frame ``index`` of ``view`` of an open scene.
+
+    ``weights`` replaces the initial data weights chosen by ``settings``; ``motion``
+    (from :func:`~.motion.frame_motion` with the same settings) skips the motion
+    estimation. Reports progress as ``"frame {index} {view}: ..."``.
+    """
+    settings = settings or DeblurSettings()
+    (view,) = check_views((view,))
+    progress = prefixed(progress, f"frame {index} {view}: ")
+    start = time.perf_counter()
+    check_gt(scene, index, settings, (view,), motion=motion is None)
+    window = read_window(scene, index, (view,), settings, motion=motion is None)
+    if motion is None:
+        report(progress, f"motion ({settings.motion_source})")
+        motion = stereo_motion(scene, window, (view,), settings, progress=progress).views[view]
+    seconds = time.perf_counter() - start
+    result = deblur_view(scene, window, motion, settings, weights=weights, progress=progress)
+    result.timings["motion"] = seconds
+    return result
+
+
+def deblur_stereo_frame(
+    scene: StereoScene,
+    index: int,
+    *,
+    views=VIEWS,
+    settings: DeblurSettings | None = None,
+    progress: ProgressCallback | None = None,
+) -> StereoFrameResult:
+    """Deblur frame ``index`` of every view in ``views``, reading each frame and computing
+    the motion once.
+
+    Each view's image equals :func:`deblur_frame`'s. Reports progress as
+    ``"frame {index}: motion ..."`` and ``"frame {index} {view}: ..."``.
+    """
+    settings = settings or DeblurSettings()
+    views = check_views(views)
+    timings = {}
+    start = time.perf_counter()
+    check_gt(scene, index, settings, views)
+    window = read_window(scene, index, views, settings)
+    timings["read"] = time.perf_counter() - start
+    start = time.perf_counter()
+    report(progress, f"frame {index}: motion ({settings.motion_source})")
+    motion = stereo_motion(
+        scene, window, views, settings, progress=prefixed(progress, f"frame {index}: ")
+    )
+    timings["motion"] = time.perf_counter() - start
+    frames = {}
+    for view in views:
+        frames[view] = deblur_view(
+            scene,
+            window,
+            motion.views[view],
+            settings,
+            progress=prefixed(progress, f"frame {index} {view}: "),
+        )
+        frames[view].timings["motion"] = sum(timings.values()) / len(views)
+    return StereoFrameResult(index, frames, motion, timings)

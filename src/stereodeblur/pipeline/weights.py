@@ -1,0 +1,166 @@
+"""Data weights, weight update, anchor, trust and prior weight of one view's deconvolution."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import InputError
+from .motion import FrameMotion
+from .operator import ViewOperator
+from .window import FrameWindow
+
+if TYPE_CHECKING:
+    from ..io.protocol import StereoScene
+    from ..settings import DeblurSettings
+
+
+@dataclass(frozen=True)
+class DataTerms:
+    """What the deconvolution of one view weighs (see ``DeblurSettings.boundary_weights``).
+
+    Parameters
+    ----------
+    weights : ndarray, float32, shape (H, W)
+        ``w_0``; ``'adaptive'``: :data:`~stereodeblur.deconv.trust.OUTSIDE_WEIGHT` where
+        the exposure path leaves the view (:func:`~stereodeblur.deconv.trust.leaves_view`),
+        times :func:`~stereodeblur.deconv.weights.hidden_weights` with an occlusion-aware
+        operator, else 1.
+    update : callable or None
+        For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
+        (a masked update in ``.update.history``).
+    anchor : ndarray, float32, shape (H, W), or None
+        For ``deblur_irls(anchor=...)``; None where the operator's rows near motion
+        boundaries come from the dense flow.
+    trust : ndarray, float32, shape (H, W), or None
+        Trust in the motion the operator uses near motion boundaries, 1 elsewhere
+        (``'adaptive'`` only; it does not include the pixels whose path leaves the view).
+    alpha : float
+        The prior weight of Eq. 6 (:func:`resolve_alpha`).
+    """
+
+    weights: np.ndarray
+    update: object | None
+    anchor: np.ndarray | None
+    trust: np.ndarray | None
+    alpha: float
+
+    @property
+    def steps(self) -> tuple:
+        """The weight updates' steps after a run (empty with fixed weights)."""
+        return tuple(getattr(getattr(self.update, "update", self.update), "history", ()))
+
+
+class _MaskedUpdate:
+    """A weight update whose result is multiplied by a fixed 0/1 mask."""
+
+    def __init__(self, update, mask):
+        self.update, self.mask = update, mask
+
+    def __call__(self, n, blurred, residual, estimate, weights):
+        return self.update(n, blurred, residual, estimate, weights) * self.mask
+
+
+def frame_trust(
+    window: FrameWindow, view: str, motion: FrameMotion, *, noise_sigma: float
+) -> np.ndarray:
+    """Trust in ``motion`` near its flow discontinuities, 1 elsewhere, float32 ``(H, W)``.
+
+    The better of the predictions of the neighbouring frames that exist, each along the
+    flow that leads to it (:func:`~stereodeblur.deconv.trust.motion_trust`). Occlusions
+    show as large residuals, and what is covered on one side is seen on the other; the
+    scene flow's occlusion mask is wider than that and is not used.
+    """
+    from ..deconv.trust import motion_trust, near_motion_boundaries
+
+    blurred = window.blurred(view)
+    following = window.frame(view, window.neighbour)
+    trust = motion_trust(blurred, following, motion.flow_forward, noise_sigma=noise_sigma)
+    if motion.flow_backward is not None and window.other is not None:
+        preceding = window.frame(view, window.other)
+        backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=noise_sigma)
+        trust = np.maximum(trust, backward)
+    band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
+    return np.where(band, trust, 1.0).astype(np.float32)
+
+
+def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None, *, noise_sigma=None):
+    """The prior weight of a run: ``settings.alpha``, or for ``'auto'``
+    :func:`~stereodeblur.deconv.noise.auto_alpha` of ``blurred`` (from ``noise_sigma`` if
+    given), raised to :func:`~stereodeblur.deconv.trust.alpha_from_trust` with a trust map.
+    """
+    if settings.alpha != "auto":
+        return float(settings.alpha)
+    from ..deconv.noise import alpha_from_sigma, estimate_noise_sigma
+
+    sigma = estimate_noise_sigma(blurred) if noise_sigma is None else noise_sigma
+    alpha = alpha_from_sigma(sigma)
+    if trust is not None:
+        from ..deconv.trust import alpha_from_trust
+
+        alpha = max(alpha, alpha_from_trust(trust))
+    return alpha
+
+
+def _gt_mask(scene: StereoScene, view: str, index: int) -> np.ndarray:
+    """Data weights 0 on the scene's gt/mixed pixels of a frame, 1 elsewhere."""
+    from ..deconv.weights import initial_weights_from_occlusion
+
+    if not scene.has_gt("mixed", view, index):
+        path = scene.gt_path("mixed", view, index)
+        raise InputError(f"boundary_mask='gt' needs {path}, which is missing")
+    return initial_weights_from_occlusion(scene.read_gt_mixed(view, index))
+
+
+def data_terms(
+    scene: StereoScene,
+    window: FrameWindow,
+    view: str,
+    view_operator: ViewOperator,
+    settings: DeblurSettings,
+) -> DataTerms:
+    """Data weights, update, anchor, trust and alpha of ``view`` (see :class:`DataTerms`).
+
+    The trust of the motion the operator uses and, where the dense flow mends the
+    boundaries, the scene flow's own trust (what ``alpha='auto'`` follows: the dense flow
+    does not mend the segments' misfit elsewhere) share one noise estimate and the window.
+    """
+    from ..deconv.noise import estimate_noise_sigma
+    from ..deconv.weights import PaperWeights, hidden_weights, initial_weights_from_occlusion
+
+    blurred = window.blurred(view)
+    sigma = estimate_noise_sigma(blurred)
+    motion, sf = view_operator.motion, view_operator.motion.sceneflow
+    dense_rows = view_operator.flow_rows is not None
+    shape = tuple(motion.flow_forward.shape[:2]) if sf is None else sf.shape
+    weights = np.ones(shape, np.float32)
+    update = anchor = trust = alpha_trust = None
+    if settings.boundary_weights == "paper":
+        update = PaperWeights()
+        if sf is not None:
+            weights = initial_weights_from_occlusion(sf.occlusion)
+    elif settings.boundary_weights == "adaptive":
+        from ..deconv.trust import OUTSIDE_WEIGHT, leaves_view, trust_anchor
+
+        # Pixels whose exposure path leaves the view show content the blur model replaces
+        # by the edge pixel's: a small data weight (not an anchor, and not in the trust
+        # map, so that alpha does not rise for them; stereodeblur.deconv.trust).
+        duty_cycle = window.exposure.duty_cycle
+        outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
+        weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
+        trust = alpha_trust = frame_trust(window, view, motion, noise_sigma=sigma)
+        anchor = None if dense_rows else trust_anchor(trust)
+        if dense_rows and settings.alpha == "auto":
+            own = view_operator.own
+            alpha_trust = frame_trust(window, view, own, noise_sigma=sigma)
+    if settings.boundary_mask == "gt":
+        keep = _gt_mask(scene, view, window.index)
+        weights = weights * keep
+        if update is not None:
+            update = _MaskedUpdate(update, keep)
+    if view_operator.hidden is not None:
+        weights = weights * hidden_weights(view_operator.hidden)
+    alpha = resolve_alpha(settings, blurred, alpha_trust, noise_sigma=sigma)
+    return DataTerms(weights, update, anchor, trust, alpha)

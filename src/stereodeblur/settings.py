@@ -1,0 +1,172 @@
+"""Choices and tuning of a deblurring run: one constant per default, one settings value.
+
+Every default is written once, here, and imported wherever it is needed (the blur
+operators, the CLI, the benchmarks). The comment above each constant says where the
+value comes from: the paper, or the measurement that chose it (``README.md``, "Measured
+figures", and ``benchmarks/README.md`` for how each figure is produced).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass, field, replace
+
+from .errors import InputError
+from .sceneflow.settings import SceneFlowSettings
+
+__all__ = [
+    "BOUNDARY_MASKS",
+    "BOUNDARY_WEIGHTS",
+    "DEFAULT_ALPHA",
+    "DEFAULT_BOUNDARY_WEIGHTS",
+    "DEFAULT_KERNELS",
+    "DEFAULT_MOTION_SOURCE",
+    "KERNELS",
+    "MOTION_SOURCES",
+    "NUM_CG",
+    "NUM_IRLS",
+    "NUM_SAMPLES",
+    "PAPER_ALPHA",
+    "DeblurSettings",
+]
+
+KERNELS = ("homography", "displacement")
+MOTION_SOURCES = ("gt", "sceneflow", "initial-flow")
+BOUNDARY_WEIGHTS = ("adaptive", "paper", "none")
+BOUNDARY_MASKS = (None, "gt")
+
+# The paper's N = 70 instants per exposure (Sec. 4); the speed table of README.md
+# ("Speed and memory") and every quality table are measured with it.
+NUM_SAMPLES = 70
+# The paper's prior weight of Eq. 6; its columns in README.md "Paper Tables 3 and 4" use it.
+PAPER_ALPHA = 1e-3
+# The paper's iteration counts (Sec. 4); README.md "Speed and memory" measures the full 10 x 25.
+NUM_IRLS = 10
+NUM_CG = 25
+# The paper's kernels (Eq. 3-4); README.md "Paper Tables 3 and 4": '3D homographies' and 'ours'.
+DEFAULT_KERNELS = "homography"
+# Estimated from the blurred stereo frames: every input has them, only rendered scenes have gt
+# (the CLI's default; README.md "Paper Tables 3 and 4" measures ours with it).
+DEFAULT_MOTION_SOURCE = "sceneflow"
+# Noise- and trust-driven: README.md "Where the defaults come from" (`bench paper --alpha-sweep`,
+# `benchmarks/calibrate_alpha.py`, raw results in benchmarks/results/calibrate_alpha.txt).
+DEFAULT_ALPHA = "auto"
+# README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene.
+DEFAULT_BOUNDARY_WEIGHTS = "adaptive"
+
+
+def _check_count(name: str, value, *, optional: bool = False) -> None:
+    if optional and value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise InputError(f"{name} must be a whole number >= 1, got {value!r}")
+
+
+@dataclass(frozen=True)
+class DeblurSettings:
+    """Choices and tuning of one deblurring run; defaults as in this module's constants.
+
+    Parameters
+    ----------
+    kernels : {'homography', 'displacement'}
+        Blur kernels from plane-induced homographies (paper Eq. 3-4) or from straight
+        2D displacements (Kim and Lee 2015).
+    motion_source : {'sceneflow', 'gt', 'initial-flow'}
+        ``'sceneflow'`` (default): estimated from the blurred stereo frames; ``'gt'``:
+        fitted to the scene's ground truth; ``'initial-flow'``: the monocular dense optical
+        flow (needs ``kernels='displacement'``). See :mod:`stereodeblur.pipeline`.
+    num_samples : int
+        Time samples over the exposure (paper: N = 70).
+    alpha : float or 'auto'
+        Prior weight of Eq. 6; ``'auto'`` (default) sets it from the noise level of the
+        blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`), and with
+        ``boundary_weights='adaptive'`` at least to what the share of pixels whose motion
+        is not trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`);
+        the paper's is 0.001 (:data:`PAPER_ALPHA`).
+    num_irls, num_cg : int
+        Iteration counts (paper: 10, 25).
+    num_segments : int or None
+        Superpixels of the scene flow (estimated or fitted to gt); it overrides
+        ``sceneflow.num_segments``. None there too: 1200 at 640x480, scaled with the area.
+    seed : int
+        Seed of the scene-flow estimator's random choices.
+    boundary_weights : {'adaptive', 'paper', 'none'}
+        Handling of the pixels the blur model cannot explain (motion boundaries, motion
+        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` (but a small weight
+        where the exposure path leaves the view); near the motion's flow discontinuities
+        it takes the blur from the initial optical flow where the motion has one
+        (:func:`stereodeblur.pipeline.boundary_motion`); without a dense flow, or with
+        displacement kernels, it anchors the estimate to the blurred frame where the motion
+        fails to predict both neighbouring frames instead (:mod:`stereodeblur.deconv.trust`),
+        and homography kernels become occlusion-aware (:func:`stereodeblur.pipeline.visibility`);
+        ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
+        updated every IRLS iteration) started from the scene flow's occlusion mask (from 1
+        without a scene flow); ``'none'`` ``w = 1``.
+    boundary_mask : {None, 'gt'}
+        ``'gt'``: the scene's gt/mixed pixels get weight 0 throughout (the paper's
+        masked experiment, Table 2), on top of ``boundary_weights``.
+    sceneflow : SceneFlowSettings
+        Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
+
+    Every field is checked on construction (:class:`~stereodeblur.errors.InputError`).
+    """
+
+    kernels: str = DEFAULT_KERNELS
+    motion_source: str = DEFAULT_MOTION_SOURCE
+    num_samples: int = NUM_SAMPLES
+    alpha: float | str = DEFAULT_ALPHA
+    num_irls: int = NUM_IRLS
+    num_cg: int = NUM_CG
+    num_segments: int | None = None
+    seed: int = 0
+    boundary_weights: str = DEFAULT_BOUNDARY_WEIGHTS
+    boundary_mask: str | None = None
+    sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
+
+    def __post_init__(self):
+        if self.kernels not in KERNELS:
+            raise InputError(f"kernels must be one of {', '.join(KERNELS)}, got {self.kernels!r}")
+        if self.motion_source not in MOTION_SOURCES:
+            raise InputError(
+                f"motion source must be one of {', '.join(MOTION_SOURCES)}, "
+                f"got {self.motion_source!r}"
+            )
+        if self.motion_source == "initial-flow" and self.kernels != "displacement":
+            raise InputError("motion_source='initial-flow' needs kernels='displacement'")
+        _check_count("num_samples", self.num_samples)
+        _check_count("num_irls", self.num_irls)
+        _check_count("num_cg", self.num_cg)
+        _check_count("num_segments", self.num_segments, optional=True)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
+            raise InputError(f"seed must be a whole number, got {self.seed!r}")
+        if self.alpha != "auto":
+            if isinstance(self.alpha, str | bool) or not (
+                isinstance(self.alpha, numbers.Real)
+                and math.isfinite(self.alpha)
+                and self.alpha > 0
+            ):
+                raise InputError(f"alpha must be 'auto' or a positive number, got {self.alpha!r}")
+        if self.boundary_weights not in BOUNDARY_WEIGHTS:
+            raise InputError(
+                f"boundary weights must be one of {', '.join(BOUNDARY_WEIGHTS)}, "
+                f"got {self.boundary_weights!r}"
+            )
+        if self.boundary_mask not in BOUNDARY_MASKS:
+            raise InputError(f"boundary mask must be 'gt' or None, got {self.boundary_mask!r}")
+        if not isinstance(self.sceneflow, SceneFlowSettings):
+            raise InputError(
+                f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"
+            )
+
+    @property
+    def estimator(self) -> SceneFlowSettings:
+        """The scene-flow estimator's settings, with ``num_segments`` if it is given."""
+        if self.num_segments is None:
+            return self.sceneflow
+        return replace(self.sceneflow, num_segments=self.num_segments)
+
+    @property
+    def segments(self) -> int | None:
+        """Superpixels of the scene flow: ``num_segments``, else ``sceneflow.num_segments``."""
+        return self.estimator.num_segments

@@ -1,0 +1,53 @@
+"""DeblurSettings: one constant per default, validated on construction."""
+
+import dataclasses
+
+import pytest
+
+from stereodeblur import settings as defaults
+from stereodeblur.errors import InputError
+from stereodeblur.pipeline import DeblurSettings
+from stereodeblur.sceneflow.settings import SceneFlowSettings
+
+
+def test_defaults_are_the_module_constants():
+    s = DeblurSettings()
+    assert s.motion_source == "sceneflow" == defaults.DEFAULT_MOTION_SOURCE
+    assert (s.num_samples, s.num_irls, s.num_cg) == (70, 10, 25)
+    assert s.num_samples == defaults.NUM_SAMPLES and defaults.PAPER_ALPHA == 1e-3
+    assert (s.kernels, s.alpha, s.boundary_weights) == ("homography", "auto", "adaptive")
+    assert s.sceneflow == SceneFlowSettings()
+
+
+def test_num_segments_overrides_the_estimators():
+    base = DeblurSettings(sceneflow=SceneFlowSettings(num_segments=300))
+    assert base.estimator.num_segments == base.segments == 300
+    given = dataclasses.replace(base, num_segments=200)
+    assert given.estimator.num_segments == given.segments == 200
+    assert given.estimator.census_threshold == SceneFlowSettings().census_threshold
+    assert DeblurSettings().segments is None
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("kernels", "gauss", "kernels"),
+        ("motion_source", "guess", "motion source"),
+        ("num_samples", 0, "num_samples"),
+        ("num_irls", 1.5, "num_irls"),
+        ("num_cg", True, "num_cg"),
+        ("num_segments", -3, "num_segments"),
+        ("seed", "zero", "seed"),
+        ("alpha", float("nan"), "alpha"),
+        ("sceneflow", {"num_segments": 3}, "SceneFlowSettings"),
+    ],
+)
+def test_bad_settings_name_the_field(field, value, message):
+    with pytest.raises(InputError, match=message):
+        DeblurSettings(**{field: value})
+
+
+def test_initial_flow_needs_displacement_kernels():
+    with pytest.raises(InputError, match="kernels='displacement'"):
+        DeblurSettings(motion_source="initial-flow")
+    DeblurSettings(motion_source="initial-flow", kernels="displacement")

@@ -1,0 +1,164 @@
+"""One pass over a stereo frame: each frame read, scene flow and dense flow computed once."""
+
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from stereodeblur.deconv.trust import motion_trust, near_motion_boundaries
+from stereodeblur.io.scene import open_scene
+from stereodeblur.pipeline import (
+    DeblurSettings,
+    deblur_frame,
+    deblur_stereo_frame,
+    frame_motion,
+    invert_flow,
+)
+from stereodeblur.synth.objects import make_object_scene
+from stereodeblur.synth.planar import write_rendered_scene
+
+FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8}
+ESTIMATED = DeblurSettings(**FAST)  # the defaults: scene flow, adaptive, homographies
+TRUE = DeblurSettings(**FAST, motion_source="gt")
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    rendered = make_object_scene("squares", size=(64, 48), num_samples=8)
+    return open_scene(write_rendered_scene(rendered, tmp_path_factory.mktemp("s") / "squares"))
+
+
+def _count(monkeypatch, scene):
+    """Spy on frame reads, scene-flow estimates and the pipeline's dense flows."""
+    from stereodeblur.sceneflow import estimate, initial
+
+    reads, estimates, flows = Counter(), [], []
+    inside = []  # dense flows inside the estimator are its own business
+    read_frame, estimate_scene_flow = scene.read_frame, estimate.estimate_scene_flow
+    optical_flow = initial.initial_optical_flow
+
+    def spy_read(view, index, **kwargs):
+        reads[view, index] += 1
+        return read_frame(view, index, **kwargs)
+
+    def spy_estimate(*args, **kwargs):
+        estimates.append(1)
+        inside.append(1)
+        try:
+            return estimate_scene_flow(*args, **kwargs)
+        finally:
+            inside.pop()
+
+    def spy_flow(a, b, **kwargs):
+        if not inside:
+            flows.append((a.tobytes(), b.tobytes()))
+        return optical_flow(a, b, **kwargs)
+
+    monkeypatch.setattr(scene, "read_frame", spy_read)
+    monkeypatch.setattr(estimate, "estimate_scene_flow", spy_estimate)
+    monkeypatch.setattr(initial, "initial_optical_flow", spy_flow)
+    return reads, estimates, flows
+
+
+@pytest.mark.parametrize("index", [1, 2])
+def test_a_stereo_frame_reads_and_estimates_everything_once(scene, monkeypatch, index):
+    reads, estimates, flows = _count(monkeypatch, scene)
+    result = deblur_stereo_frame(scene, index, settings=ESTIMATED)
+    assert set(result.frames) == {"left", "right"}
+    window = {1: (0, 1, 2), 2: (1, 2)}[index]
+    assert reads == Counter({(v, i): 1 for v in ("left", "right") for i in window})
+    assert len(estimates) == 1
+    # Dense flows: each view to the neighbour and to the other side where there is one; the
+    # left view's to the neighbour is the estimate's initial flow.
+    assert len(flows) == len(set(flows)) == {1: 3, 2: 1}[index]
+    assert np.array_equal(
+        result.motion.views["left"].boundary_flow[0], result.motion.estimate.initial_flow
+    )
+
+
+def test_true_motion_reads_each_frame_once(scene, monkeypatch):
+    reads, estimates, flows = _count(monkeypatch, scene)
+    deblur_stereo_frame(scene, 1, settings=TRUE)
+    assert reads == Counter({(v, i): 1 for v in ("left", "right") for i in (0, 1, 2)})
+    assert estimates == [] and flows == []
+
+
+@pytest.mark.parametrize(
+    ("settings", "index"),
+    [
+        (ESTIMATED, 1),
+        (ESTIMATED, 2),
+        (TRUE, 1),
+        (TRUE, 2),
+        (DeblurSettings(**FAST, kernels="displacement", motion_source="initial-flow"), 0),
+        (DeblurSettings(**FAST, boundary_weights="paper", motion_source="gt"), 1),
+    ],
+)
+def test_the_stereo_frame_equals_one_frame_per_view(scene, settings, index):
+    stereo = deblur_stereo_frame(scene, index, settings=settings)
+    for view in ("left", "right"):
+        alone = deblur_frame(scene, index, view=view, settings=settings)
+        both = stereo.frames[view]
+        np.testing.assert_array_equal(both.image, alone.image)
+        assert both.alpha == alone.alpha and both.view == view
+        assert (both.trust is None) == (alone.trust is None)
+        if both.trust is not None:
+            np.testing.assert_array_equal(both.trust, alone.trust)
+
+
+def test_one_view_only(scene, monkeypatch):
+    reads, _, _ = _count(monkeypatch, scene)
+    settings = DeblurSettings(**FAST, motion_source="initial-flow", kernels="displacement")
+    result = deblur_stereo_frame(scene, 1, views=("right",), settings=settings)
+    assert set(result.frames) == {"right"}
+    assert set(reads) == {("right", 0), ("right", 1), ("right", 2)}
+
+
+def test_the_last_frame_with_true_motion_leads_to_the_previous_frame(scene):
+    last = scene.num_frames - 1
+    motion = frame_motion(scene, last, "left", TRUE)
+    assert (motion.index, motion.neighbour, motion.flow_backward) == (last, last - 1, None)
+    # The flow to the previous frame is the inverse of the gt flow into the last frame.
+    into = scene.read_gt_flow("left", last - 1)
+    known = np.all(np.isfinite(into), axis=2)
+    expected = invert_flow(np.where(known[..., None], into, 0).astype(np.float32))
+    inside = np.isfinite(motion.flow_forward).all(axis=2)
+    assert inside.mean() > 0.5
+    np.testing.assert_array_equal(motion.flow_forward[inside], expected[inside])
+    result = deblur_frame(scene, last, settings=TRUE)
+    assert result.motion.neighbour == last - 1 and np.isfinite(result.image).all()
+
+
+def test_the_last_frames_trust_compares_the_previous_frame_along_the_flow_to_it(scene):
+    last = scene.num_frames - 1
+    settings = DeblurSettings(**FAST, kernels="displacement")  # scene flow, no dense rows
+    result = deblur_frame(scene, last, settings=settings)
+    motion, blurred = result.motion, scene.read_frame("left", last)
+    previous = scene.read_frame("left", last - 1)
+    expected = motion_trust(blurred, previous, motion.flow_forward)
+    band = near_motion_boundaries(motion.flow_forward, scene.info.exposure.duty_cycle)
+    assert band.any()
+    np.testing.assert_array_equal(result.trust[band], expected[band])
+    wrong = motion_trust(blurred, previous, -motion.flow_forward)  # the flow pointing away
+    assert result.trust[band].mean() > wrong[band].mean()
+
+
+def test_timings_name_the_stages(scene):
+    stereo = deblur_stereo_frame(scene, 1, settings=TRUE)
+    assert set(stereo.timings) == {"read", "motion"}
+    shared = sum(stereo.timings.values())
+    for result in stereo.frames.values():
+        assert set(result.timings) == {"motion", "operator", "deconvolution"}
+        assert result.timings["motion"] == shared / 2
+    alone = deblur_frame(scene, 1, settings=TRUE)
+    assert set(alone.timings) == {"motion", "operator", "deconvolution"}
+
+
+def test_progress_names_frame_and_view(scene):
+    seen = []
+    deblur_stereo_frame(scene, 1, settings=TRUE, progress=seen.append)
+    stages = [p.stage for p in seen]
+    assert stages[0] == "frame 1: motion (gt)"
+    assert "frame 1 right: blur operator (homography)" in stages
+    irls = [p for p in seen if p.stage == "frame 1 left: IRLS"]
+    assert [(p.done, p.total) for p in irls] == [(1, 2), (2, 2)]
