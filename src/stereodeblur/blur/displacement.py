@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from ..geometry.camera import Exposure
+from ..settings import NUM_SAMPLES
 from . import _kernels
 from .homography import _check_num_samples, csr_from_arrays
 from .operator import SparseBlur
@@ -68,7 +69,7 @@ def displacement_blur(
     flow_backward: np.ndarray,
     exposure: Exposure,
     *,
-    num_samples: int = 70,
+    num_samples: int = NUM_SAMPLES,
 ) -> SparseBlur:
     """Blur operator from 2D displacements by forward warping (Kim & Lee 2015).
 
@@ -111,7 +112,7 @@ def displacement_blur_reference(
     flow_backward: np.ndarray,
     exposure: Exposure,
     *,
-    num_samples: int = 70,
+    num_samples: int = NUM_SAMPLES,
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`displacement_blur`.
 

@@ -15,6 +15,7 @@ import scipy.sparse as sp
 
 from ..geometry.camera import Exposure
 from ..sceneflow.model import SceneFlow
+from ..settings import NUM_SAMPLES
 from . import _kernels
 from .operator import SparseBlur
 from .trajectories import bilinear_taps, homography_positions
@@ -61,7 +62,7 @@ def _inputs(sceneflow: SceneFlow, exposure: Exposure, num_samples) -> tuple:
 
 
 def homography_blur(
-    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70, visible=None
+    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = NUM_SAMPLES, visible=None
 ) -> SparseBlur:
     """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
 
@@ -94,7 +95,7 @@ def homography_blur(
 
 
 def homography_blur_reference(
-    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = 70, visible=None
+    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = NUM_SAMPLES, visible=None
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`homography_blur`.
 

@@ -23,6 +23,7 @@ from collections.abc import Iterator, Sequence
 from typing import Protocol
 
 from ..errors import InputError
+from ..settings import NUM_SAMPLES
 from .job import ClipJob, FrameRecord, Task
 from .worker import cores, init_worker, process_task
 
@@ -51,7 +52,7 @@ def _available_memory() -> float | None:
     return None
 
 
-def default_workers(shape, *, num_samples: int = 70, num_tasks: int | None = None) -> int:
+def default_workers(shape, *, num_samples: int = NUM_SAMPLES, num_tasks: int | None = None) -> int:
     """Worker processes for a local run: one per core, as many as memory allows.
 
     Each worker gets ``cores // workers`` numba threads, so the cores are busy

@@ -58,6 +58,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
+from ..settings import PAPER_ALPHA
 from .noise import estimate_noise_sigma
 
 TRUST_RELATIVE = 0.5
@@ -70,7 +71,6 @@ UNTRUSTED_SHARE = 0.02
 """Share of untrusted pixels (trust < 0.5) from which :func:`alpha_from_trust` gives the
 paper's alpha."""
 
-PAPER_ALPHA = 1e-3
 
 ANCHOR_STRENGTH = 0.3
 """``strength`` of the anchor, relative to the data term's unit weight."""

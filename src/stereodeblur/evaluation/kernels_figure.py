@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..settings import NUM_SAMPLES
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,7 +105,7 @@ def kernel_grid(
     yaw: float = 0.3,
     depth: float = 3.0,
     grid: tuple[int, int] = (5, 4),
-    num_samples: int = 70,
+    num_samples: int = NUM_SAMPLES,
     inset: float = 0.1,
 ) -> KernelGrid:
     """Homography- and flow-induced kernels of the yawing plane at ``grid`` pixels.
