@@ -1,0 +1,36 @@
+"""Blur operators: the exposure integral of the paper's Eq. 3-4 as a sparse matrix.
+
+Start at :func:`homography_blur` (Eq. 3): the blur of one view under piecewise-rigid scene
+flow, each row the mean of ``N = 70`` bilinear samples of the sharp image along the pixel's
+trajectory. It returns a :class:`SparseBlur` (``forward`` = ``A I``, ``adjoint`` =
+``A^T B``, ``gram`` = ``A^T W^2 A I`` in one pass over the matrix), the operator that
+:func:`stereodeblur.deconv.deblur_irls` inverts. :func:`displacement_blur` builds the same
+kind of operator from 2D flow, and :mod:`.trajectories` holds the sampling rules both share.
+
+Names are imported on first use, so importing this package does not load numba.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "homography_blur": "stereodeblur.blur.homography",
+    "displacement_blur": "stereodeblur.blur.displacement",
+    "SparseBlur": "stereodeblur.blur.operator",
+    "dot_test": "stereodeblur.blur.operator",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

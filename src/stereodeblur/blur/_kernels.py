@@ -105,15 +105,8 @@ def _merge_taps(
     ``divisor``. Small bounding boxes use a dense accumulator that is cleared
     and scanned whole; larger ones track the touched cells and sort them.
     """
-    xmin = px[0]
-    xmax = px[0]
-    ymin = py[0]
-    ymax = py[0]
-    for k in range(1, n):
-        xmin = min(xmin, px[k])
-        xmax = max(xmax, px[k])
-        ymin = min(ymin, py[k])
-        ymax = max(ymax, py[k])
+    xmin, xmax = px[:n].min(), px[:n].max()
+    ymin, ymax = py[:n].min(), py[:n].max()
     # Taps of a position p lie in [floor(p), floor(p) + 1] (snapping stays inside).
     bx0 = np.int64(np.floor(xmin))
     bx1 = np.int64(np.floor(xmax)) + 1

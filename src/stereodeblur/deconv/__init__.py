@@ -1,20 +1,40 @@
-"""Deconvolution: conjugate gradients and IRLS with the sparse gradient prior (Sec. 3)."""
+"""Deconvolution: IRLS with the sparse gradient prior (paper Sec. 3).
 
-from stereodeblur.deconv.cg import CGResult, conjugate_gradient
-from stereodeblur.deconv.irls import (
-    DeblurResult,
-    IrlsIterate,
-    deblur_irls,
-    gradient,
-    gradient_adjoint,
-)
+Start at :func:`deblur_irls` (Eq. 6-8): it minimises
+``sum_x || w(x) (B(x) - A_x I) ||^2 + alpha sum |d I|^0.8`` by iteratively reweighted least
+squares, 10 iterations of 25 conjugate-gradient steps (:mod:`.cg`) with the prior weights of
+Eq. 7 (:mod:`.prior`). The data weights ``w`` of Eq. 5 come from :class:`PaperWeights`
+(motion-boundary weights updated from the residual every iteration, :mod:`.weights`);
+:mod:`.trust` and :mod:`.noise` choose anchors and ``alpha`` for the pipeline.
 
-__all__ = [
-    "CGResult",
-    "DeblurResult",
-    "IrlsIterate",
-    "conjugate_gradient",
-    "deblur_irls",
-    "gradient",
-    "gradient_adjoint",
-]
+Names are imported on first use, so importing this package does not load numba.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "CGResult": "stereodeblur.deconv.cg",
+    "conjugate_gradient": "stereodeblur.deconv.cg",
+    "DeblurResult": "stereodeblur.deconv.irls",
+    "IrlsIterate": "stereodeblur.deconv.irls",
+    "deblur_irls": "stereodeblur.deconv.irls",
+    "gradient": "stereodeblur.deconv.prior",
+    "gradient_adjoint": "stereodeblur.deconv.prior",
+    "PaperWeights": "stereodeblur.deconv.weights",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

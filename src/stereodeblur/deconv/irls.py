@@ -277,6 +277,28 @@ class _NormalEquations:
         return IrlsIterate(iteration, data + prior, data, prior, mean, relative)
 
 
+def _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_cg) -> None:
+    """Raise an :class:`InputError` naming the first bad argument of :func:`deblur_irls`."""
+    if blurred.ndim not in (2, 3) or min(blurred.shape[:2], default=0) < 1:
+        raise InputError(f"blurred must have shape (H, W) or (H, W, C), got {blurred.shape}")
+    if not np.issubdtype(blurred.dtype, np.number):
+        raise InputError(f"blurred must be numeric, got dtype {blurred.dtype}")
+    if not (hasattr(operator, "forward") and hasattr(operator, "adjoint")):
+        raise InputError(f"operator must have forward and adjoint methods, got {operator!r}")
+    op_shape = getattr(operator, "shape", None)
+    if op_shape is not None and tuple(op_shape) != blurred.shape[:2]:
+        raise InputError(f"operator shape {tuple(op_shape)} does not match image {blurred.shape}")
+    if not (np.isfinite(alpha) and alpha >= 0):
+        raise InputError(f"alpha must be a non-negative number, got {alpha!r}")
+    if not (np.isfinite(exponent) and 0 < exponent <= 2):
+        raise InputError(f"exponent must be in (0, 2], got {exponent!r}")
+    if not (np.isfinite(epsilon) and epsilon > 0):
+        raise InputError(f"epsilon must be positive, got {epsilon!r}")
+    for name, value in (("num_irls", num_irls), ("num_cg", num_cg)):
+        if int(value) != value or value < 0:
+            raise InputError(f"{name} must be a non-negative integer, got {value!r}")
+
+
 def deblur_irls(
     blurred: np.ndarray,
     operator,
@@ -317,7 +339,9 @@ def deblur_irls(
         ``B``, the blurred frame (normalised intensities); also the starting estimate.
     operator : object
         Blur ``A`` with ``forward(image)`` and ``adjoint(image)`` on ``(H, W[, C])`` arrays
-        (e.g. :class:`stereodeblur.blur.operator.SparseBlur`).
+        (e.g. :class:`stereodeblur.blur.operator.SparseBlur`). If it also has
+        ``gram(image, squared_weights)`` (``A^T W^2 A`` in one pass, as ``SparseBlur``), the
+        CG steps use that instead of ``forward`` then ``adjoint``.
     weights : ndarray, shape (H, W), optional
         Per-pixel data weights ``w`` in [0, 1], all ones by default. Zeros are allowed
         (masked deblurring): such pixels are filled in by the prior.
@@ -354,25 +378,7 @@ def deblur_irls(
         The estimate is float32 and not clipped.
     """
     blurred = np.asarray(blurred)
-    if blurred.ndim not in (2, 3) or min(blurred.shape[:2], default=0) < 1:
-        raise InputError(f"blurred must have shape (H, W) or (H, W, C), got {blurred.shape}")
-    if not np.issubdtype(blurred.dtype, np.number):
-        raise InputError(f"blurred must be numeric, got dtype {blurred.dtype}")
-    if not (hasattr(operator, "forward") and hasattr(operator, "adjoint")):
-        raise InputError(f"operator must have forward and adjoint methods, got {operator!r}")
-    op_shape = getattr(operator, "shape", None)
-    if op_shape is not None and tuple(op_shape) != blurred.shape[:2]:
-        raise InputError(f"operator shape {tuple(op_shape)} does not match image {blurred.shape}")
-    if not (np.isfinite(alpha) and alpha >= 0):
-        raise InputError(f"alpha must be a non-negative number, got {alpha!r}")
-    if not (np.isfinite(exponent) and 0 < exponent <= 2):
-        raise InputError(f"exponent must be in (0, 2], got {exponent!r}")
-    if not (np.isfinite(epsilon) and epsilon > 0):
-        raise InputError(f"epsilon must be positive, got {epsilon!r}")
-    for name, value in (("num_irls", num_irls), ("num_cg", num_cg)):
-        if int(value) != value or value < 0:
-            raise InputError(f"{name} must be a non-negative integer, got {value!r}")
-
+    _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_cg)
     with threads_for(blurred.size):
         return _deblur(
             blurred,
