@@ -77,7 +77,8 @@ def solve(
 ) -> DeblurResult:
     """Eq. 6 by IRLS (:func:`~stereodeblur.deconv.irls.deblur_irls`) with ``terms``.
 
-    ``weights`` replaces ``terms.weights`` as the initial data weights.
+    ``weights`` replaces ``terms.weights`` as the initial data weights; ``progress`` gets
+    ``Progress('IRLS', done, total)`` after every IRLS iteration.
     """
     return deblur_irls(
         blurred,
@@ -88,23 +89,8 @@ def solve(
         num_cg=settings.num_cg,
         update_weights=terms.update,
         anchor=terms.anchor,
-        progress=_irls_progress(progress),
+        progress=progress,
     )
-
-
-def _irls_progress(progress: ProgressCallback | None):
-    """``progress`` for ``deblur_irls``, which is moving from ``progress(done, total)`` to a
-    :data:`~stereodeblur.progress.ProgressCallback` (both are passed on as ``'IRLS'``)."""
-    if progress is None:
-        return None
-
-    def forward(*args):
-        if len(args) == 1:
-            progress(args[0])
-        else:
-            report(progress, "IRLS", *args)
-
-    return forward
 
 
 def deblur_view(
