@@ -32,6 +32,7 @@ the median interval of their timestamps. KITTI states no exposure time.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
@@ -291,6 +292,78 @@ def _check_headers(files: dict[str, list[Path]]):
     return first
 
 
+@dataclass(frozen=True)
+class _Layout:
+    """Where one KITTI sequence or drive keeps its frames and calibration."""
+
+    name: str
+    files: dict[str, list[Path]]
+    calib_path: Path
+    keys: tuple[str, str, str | None]  # left and right projection, rectified size
+    data_dirs: tuple[Path, Path]
+    frame_rate: float = KITTI_FRAME_RATE
+    warnings: tuple[str, ...] = ()
+
+
+def _right_files(left: list[Path], folder: Path) -> list[Path]:
+    right = [folder / p.name for p in left]
+    for path in right:
+        if not path.is_file():
+            raise FileNotFoundError(f"missing frame {path} (the left view has {left[0].name})")
+    return right
+
+
+def _benchmark_layout(root: Path, kind: str, sequence) -> _Layout:
+    left_dir, right_dir, calib_dir, *keys = next(
+        lay
+        for lay in _BENCHMARK_LAYOUTS[kind]
+        if (root / lay[0]).is_dir() and (root / lay[1]).is_dir()
+    )
+    sequence, left = _benchmark_frames(root / left_dir, sequence, root)
+    return _Layout(
+        name=f"{root.name}/{sequence}",
+        files={"left": left, "right": _right_files(left, root / right_dir)},
+        calib_path=root / calib_dir / f"{sequence}.txt",
+        keys=tuple(keys),
+        data_dirs=(root / left_dir, root / right_dir),
+    )
+
+
+def _raw_layout(root: Path, frame_rate) -> _Layout:
+    left_dir, right_dir, *keys = next(
+        lay for lay in _RAW_LAYOUTS if (root / lay[0] / "data").is_dir()
+    )
+    left = _raw_frames(root / left_dir / "data")
+    candidates = [root / "calib_cam_to_cam.txt", root.parent / "calib_cam_to_cam.txt"]
+    calib_path = next((p for p in candidates if p.is_file()), None)
+    if calib_path is None:
+        raise FileNotFoundError(f"KITTI calibration not found: {candidates[0]} or {candidates[1]}")
+    source_frame_rate, warnings = KITTI_FRAME_RATE, []
+    stamps_path = root / left_dir / "timestamps.txt"
+    if stamps_path.is_file() or frame_rate is None:
+        stamps = read_timestamps(stamps_path)
+        if stamps.size < len(left):
+            raise InputError(f"{stamps_path} has {stamps.size} timestamps for {len(left)} frames")
+        steps = np.diff(stamps[: len(left)])
+        median = float(np.median(steps))
+        source_frame_rate = float(f"{1.0 / median:.9g}")  # timestamps: ns, jitter
+        gaps = np.flatnonzero(steps > 1.5 * median)
+        if gaps.size:
+            warnings.append(
+                f"{stamps_path}: {gaps.size} gap(s) longer than 1.5 frame intervals "
+                f"(first after frame {gaps[0]}): frames were dropped there"
+            )
+    return _Layout(
+        name=root.name,
+        files={"left": left, "right": _right_files(left, root / right_dir / "data")},
+        calib_path=calib_path,
+        keys=tuple(keys),
+        data_dirs=(root / left_dir / "data", root / right_dir / "data"),
+        frame_rate=source_frame_rate,
+        warnings=tuple(warnings),
+    )
+
+
 def open_kitti(
     root,
     *,
@@ -306,63 +379,19 @@ def open_kitti(
     kind = kind or detect_kitti(root)
     if kind is None:
         raise InputError(f"{root} is not a KITTI folder")
-    warnings = []
-    source_frame_rate = KITTI_FRAME_RATE
     if kind in _BENCHMARK_LAYOUTS:
-        layouts = [
-            lay
-            for lay in _BENCHMARK_LAYOUTS[kind]
-            if (root / lay[0]).is_dir() and (root / lay[1]).is_dir()
-        ]
-        left_dir, right_dir, calib_dir, left_key, right_key, size_key = layouts[0]
-        sequence, left = _benchmark_frames(root / left_dir, sequence, root)
-        right = [root / right_dir / p.name for p in left]
-        for path in right:
-            if not path.is_file():
-                raise FileNotFoundError(f"missing frame {path} (the left view has {left[0].name})")
-        calib_path = root / calib_dir / f"{sequence}.txt"
-        name = f"{root.name}/{sequence}"
-        data_dirs = [root / left_dir, root / right_dir]
+        layout = _benchmark_layout(root, kind, sequence)
     else:
-        layout = next(lay for lay in _RAW_LAYOUTS if (root / lay[0] / "data").is_dir())
-        left_dir, right_dir, left_key, right_key, size_key = layout
-        left = _raw_frames(root / left_dir / "data")
-        right = [root / right_dir / "data" / p.name for p in left]
-        for path in right:
-            if not path.is_file():
-                raise FileNotFoundError(f"missing frame {path} (the left view has {left[0].name})")
-        candidates = [root / "calib_cam_to_cam.txt", root.parent / "calib_cam_to_cam.txt"]
-        calib_path = next((p for p in candidates if p.is_file()), None)
-        if calib_path is None:
-            raise FileNotFoundError(
-                f"KITTI calibration not found: {candidates[0]} or {candidates[1]}"
-            )
-        stamps_path = root / left_dir / "timestamps.txt"
-        if stamps_path.is_file() or frame_rate is None:
-            stamps = read_timestamps(stamps_path)
-            if stamps.size < len(left):
-                raise InputError(
-                    f"{stamps_path} has {stamps.size} timestamps for {len(left)} frames"
-                )
-            steps = np.diff(stamps[: len(left)])
-            median = float(np.median(steps))
-            source_frame_rate = float(f"{1.0 / median:.9g}")  # timestamps: ns, jitter
-            gaps = np.flatnonzero(steps > 1.5 * median)
-            if gaps.size:
-                warnings.append(
-                    f"{stamps_path}: {gaps.size} gap(s) longer than 1.5 frame intervals "
-                    f"(first after frame {gaps[0]}): frames were dropped there"
-                )
-        name = root.name
-        data_dirs = [root / left_dir / "data", root / right_dir / "data"]
-    files = {"left": left, "right": right}
-    header = _check_headers(files)
-    check_frame_size(header.width, header.height, left[0])
+        layout = _raw_layout(root, frame_rate)
+    first, calib_path = layout.files["left"][0], layout.calib_path
+    left_key, right_key, size_key = layout.keys
+    header = _check_headers(layout.files)
+    check_frame_size(header.width, header.height, first)
     camera, entries = kitti_camera(calib_path, left_key, right_key)
     size = _rectified_size(entries, size_key, calib_path)
     if size is not None and size != (header.width, header.height):
         raise InputError(
-            f"{left[0]} is {header.width}x{header.height} but {calib_path} says rectified "
+            f"{first} is {header.width}x{header.height} but {calib_path} says rectified "
             f"images are {size[0]}x{size[1]} ({size_key}); are these unrectified images?"
         )
     check_intrinsics(camera.K, (header.width, header.height), f"{calib_path}: {left_key}")
@@ -372,17 +401,17 @@ def open_kitti(
         frame_rate=frame_rate,
         exposure=exposure,
         color=color,
-        source_frame_rate=source_frame_rate,
+        source_frame_rate=layout.frame_rate,
         require_exposure=require_exposure,
     )
     return KittiSource(
         kind=kind,
         root=root,
-        name=name,
-        files=files,
+        name=layout.name,
+        files=layout.files,
         info=info,
         shape=(header.height, header.width),
         channels=header.channels,
-        paths=[*data_dirs, calib_path],
-        warnings=warnings,
+        paths=[*layout.data_dirs, calib_path],
+        warnings=layout.warnings,
     )
