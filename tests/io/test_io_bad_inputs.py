@@ -283,3 +283,32 @@ def test_huge_png_header_is_refused_before_decoding(size, tmp_path, capfd):
     out = tmp_path / "out"
     _assert_refused(capfd, [str(scene / "right" / "000001.png"), str(MAX_PIXELS)],
                     "deblur", scene, "-o", out, output=out)  # fmt: skip
+
+
+def test_quiet_stderr_restores_fd_2_after_concurrent_use():
+    import os
+    import threading
+    import time
+
+    from stereodeblur.io.formats import quiet_stderr
+
+    before = os.fstat(2)
+    null = os.stat(os.devnull)
+
+    silenced = []
+
+    def work(seed):
+        for k in range(20):
+            with quiet_stderr():
+                inside = os.fstat(2)
+                silenced.append((inside.st_dev, inside.st_ino) == (null.st_dev, null.st_ino))
+                time.sleep(0.0005 * ((seed + k) % 3))
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(6)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(silenced) == 120 and all(silenced)
+    after = os.fstat(2)
+    assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)

@@ -20,6 +20,7 @@ import io
 import os
 import secrets
 import struct
+import threading
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -171,28 +172,41 @@ def png_data_length(handle: BinaryIO, size: int, path) -> int:
         position = end
 
 
+_QUIET_LOCK = threading.Lock()
+_quiet_state = {"depth": 0, "saved": None, "level": None}
+
+
 @contextlib.contextmanager
 def quiet_stderr():
     """Keep C libraries' messages (OpenCV, libpng, FFmpeg) off the terminal (fd 2).
 
-    For calls whose failure the caller reports itself, in one line.
+    For calls whose failure the caller reports itself, in one line. Nested and
+    concurrent uses (threads) share one redirection: the first to enter redirects,
+    the last to leave restores.
     """
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    with _QUIET_LOCK:
+        if _quiet_state["depth"] == 0:
+            _quiet_state["level"] = cv2.utils.logging.getLogLevel()
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+            try:
+                saved = os.dup(2)
+                with open(os.devnull, "wb") as null:
+                    os.dup2(null.fileno(), 2)
+            except OSError:  # no fd 2 (detached process): nothing to silence
+                saved = None
+            _quiet_state["saved"] = saved
+        _quiet_state["depth"] += 1
     try:
-        saved = os.dup(2)
-    except OSError:  # no fd 2 (detached process): nothing to silence
-        saved = None
-    try:
-        if saved is not None:
-            with open(os.devnull, "wb") as null:
-                os.dup2(null.fileno(), 2)
         yield
     finally:
-        if saved is not None:
-            os.dup2(saved, 2)
-            os.close(saved)
-        cv2.utils.logging.setLogLevel(level)
+        with _QUIET_LOCK:
+            _quiet_state["depth"] -= 1
+            if _quiet_state["depth"] == 0:
+                saved = _quiet_state["saved"]
+                if saved is not None:
+                    os.dup2(saved, 2)
+                    os.close(saved)
+                cv2.utils.logging.setLogLevel(_quiet_state["level"])
 
 
 def _decode_png(path) -> tuple[np.ndarray, PngInfo]:
