@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
     frames = None if args.frames is None else select_frames(args.frames, source.num_frames)
     views = views_of(args)
     if settings.motion_source == "gt":
-        check_gt_motion(source, range(source.num_frames) if frames is None else frames, settings)
+        indices = range(source.num_frames) if frames is None else frames
+        check_gt_motion(source, indices, settings, views)
     if args.sceneflow:
         return _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views)
     return _deblur_clip(args, settings, spec, frames, views)

@@ -2,46 +2,36 @@
 
 Ground truth that is entirely unknown, or that describes a motion no frame can show, gives
 no deblurring or a result worse than the input without any error downstream. Every gt
-file the run will read is checked once, up front:
+file the run will read (:func:`stereodeblur.pipeline.gt_needs`) is checked once, up front:
 
 - disparity: some pixel known (finite and > 0), and every known value in
   ``[MIN_DISPARITY, width]`` pixels: a disparity above the frame's width puts the point
   out of the other view, one below 0.001 px is a point more than 1000 times farther than
   the depth at 1 px, where a plane fit from it is meaningless;
-- flow: some pixel known, and every known ``|flow|`` at most the frame's diagonal
-  (a longer motion leaves the frame within one frame interval).
+- flow: some pixel known (finite, below the FLO format's 1e9 "unknown"), and every known
+  ``|flow|`` at most the frame's diagonal (a longer motion leaves the frame within one
+  frame interval).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 
 MIN_DISPARITY = 1e-3
-
-
-def gt_files(scene, indices: Iterable[int], settings) -> list[tuple[str, int]]:
-    """The left view's gt files ``(kind, frame)`` the frames ``indices`` read."""
-    needed: dict[tuple[str, int], None] = {}
-    last = scene.num_frames - 1
-    for index in indices:
-        neighbour = index + 1 if index < last else index - 1
-        needed[("disparity", index)] = None
-        needed[("disparity", neighbour)] = None
-        needed[("flow", min(index, neighbour))] = None
-        if 0 < index and scene.has_gt("flow", "left", index - 1):
-            needed[("flow", index - 1)] = None
-    return list(needed)
+FLO_UNKNOWN = 1e9
 
 
 def check_disparity(disparity: np.ndarray, path) -> None:
     """InputError naming ``path`` unless the disparity is usable (module docstring)."""
     width = disparity.shape[1]
-    known = disparity[np.isfinite(disparity) & (disparity > 0)]
+    with np.errstate(invalid="ignore"):
+        known = disparity[np.isfinite(disparity) & (disparity > 0)]
     if known.size == 0:
         raise InputError(f"{path}: no known disparity (every value is NaN or <= 0)")
     low, high = float(known.min()), float(known.max())
@@ -55,28 +45,34 @@ def check_disparity(disparity: np.ndarray, path) -> None:
 def check_flow(flow: np.ndarray, path) -> None:
     """InputError naming ``path`` unless the flow is usable (module docstring)."""
     height, width = flow.shape[:2]
-    length = np.linalg.norm(flow, axis=-1)
-    known = length[np.isfinite(length)]
-    if known.size == 0:
+    with np.errstate(invalid="ignore"):
+        known = np.all(np.isfinite(flow) & (np.abs(flow) < FLO_UNKNOWN), axis=-1)
+    if not known.any():
         raise InputError(f"{path}: no known flow (every value is unknown)")
+    longest = float(np.linalg.norm(flow[known].astype(np.float64), axis=-1).max())
     diagonal = math.hypot(width, height)
-    if float(known.max()) > diagonal:
+    if longest > diagonal:
         raise InputError(
-            f"{path}: flow up to {float(known.max()):.4g} px long, expected at most the "
-            f"frame's diagonal, {diagonal:.0f} px"
+            f"{path}: flow up to {longest:.4g} px long, expected at most the frame's "
+            f"diagonal, {diagonal:.0f} px"
         )
 
 
-def check_gt_motion(scene, indices: Iterable[int], settings) -> None:
-    """Check every gt file the deblurring of ``indices`` reads with ``--motion-source gt``.
+def check_gt_motion(scene, indices: Iterable[int], settings, views) -> None:
+    """Check every gt disparity and flow file that deblurring ``indices`` reads.
 
-    A missing file is left to the run, which names it.
+    Missing files are left to the run, which names them (or skips their frames).
     """
-    for kind, index in gt_files(scene, indices, settings):
-        if not scene.has_gt(kind, "left", index):
+    from ..io.formats import read_flo, read_pfm
+    from ..pipeline import gt_needs
+
+    paths = {
+        Path(p): None for index in indices for p in gt_needs(scene, index, settings, views=views)
+    }
+    for path in paths:
+        if not path.is_file():
             continue
-        path = scene.gt_path(kind, "left", index)
-        if kind == "disparity":
-            check_disparity(scene.read_gt_disparity("left", index), path)
-        else:
-            check_flow(scene.read_gt_flow("left", index), path)
+        if path.suffix.lower() == ".pfm":
+            check_disparity(read_pfm(path), path)
+        elif path.suffix.lower() == ".flo":
+            check_flow(read_flo(path), path)

@@ -34,10 +34,8 @@ ALPHA_MAX = 1.0
 
 
 def _settings_module():
-    try:
-        from .. import settings
-    except ImportError:  # until stereodeblur.settings lands
-        from .. import pipeline as settings
+    from .. import settings
+
     return settings
 
 

@@ -410,7 +410,7 @@ def run_paper_bench(
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
     from ..io.outputs import atomic_write_text
-    from ..pipeline import DeblurSettings
+    from ..settings import DeblurSettings
 
     start = time.perf_counter()
     names = list(scenes) if scenes else default_scenes()

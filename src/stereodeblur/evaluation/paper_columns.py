@@ -28,10 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-try:
-    from ..settings import PAPER_ALPHA
-except ImportError:  # until stereodeblur.settings is on main
-    from ..pipeline import PAPER_ALPHA
+from ..settings import PAPER_ALPHA
 
 FRAME = 1
 ALPHA_SWEEP = (3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
