@@ -24,6 +24,7 @@ from stereodeblur.io.camera_json import CameraInfo, read_camera
 from stereodeblur.io.formats import (
     PNG_SIGNATURE,
     PngInfo,
+    check_png_file,
     read_flo,
     read_mask,
     read_pfm,
@@ -37,7 +38,6 @@ from stereodeblur.io.kitti import (
     read_kitti_calibration,
     read_timestamps,
 )
-from stereodeblur.io.readable import check_png_layout
 
 FUZZ = settings(
     max_examples=200,
@@ -466,7 +466,7 @@ png_files = st.builds(
 def _check_png(folder, data):
     path = folder / "a.png"
     header = _parse(read_png_header, path, data)
-    _parse(check_png_layout, path, data)
+    _parse(check_png_file, path, data)
     image = _parse(read_png, path, data)
     mask = _parse(read_mask, path, data)
     if header is not None:

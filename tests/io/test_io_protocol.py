@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from stereodeblur.errors import InputError
+from stereodeblur.io.formats import check_png_file
 from stereodeblur.io.frame_source import FrameSource
 from stereodeblur.io.protocol import StereoScene
-from stereodeblur.io.readable import check_png_layout, check_readable
+from stereodeblur.io.readable import check_readable
 from stereodeblur.io.scene import scene_path
 from stereodeblur.io.sources import open_source
 from stereodeblur.io.video import write_video
@@ -180,7 +181,7 @@ def test_png_layout_rejects_data_without_idat(tmp_path):
     bad = tmp_path / "bad.png"
     bad.write_bytes(data[:33] + b"\x00\x00\x00\x00IEND\xaeB`\x82")
     with pytest.raises(InputError, match="no image data"):
-        check_png_layout(bad)
+        check_png_file(bad)
     bad.write_bytes(data[:33] + b"\xff\xff\xff\xffIDAT")
     with pytest.raises(InputError, match="truncated PNG file"):
-        check_png_layout(bad)
+        check_png_file(bad)

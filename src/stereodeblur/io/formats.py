@@ -209,20 +209,49 @@ def quiet_stderr():
                 cv2.utils.logging.setLogLevel(_quiet_state["level"])
 
 
-def _decode_png(path) -> tuple[np.ndarray, PngInfo]:
-    """Decode a PNG to its integer array, (H, W) or (H, W, 3) RGB, alpha dropped."""
-    data = _read_bytes(path)
-    info, color_type = _parse_ihdr(data[:33], path)
-    # Deflate compresses at most ~1032:1: refuse image data too short for the declared
-    # size before OpenCV allocates the image.
+def _png_structure(handle: BinaryIO, size: int, path) -> PngInfo:
+    """Header and chunk layout of a PNG, and enough image data for its declared size.
+
+    Deflate compresses at most ~1032:1, so image data too short for the declared
+    size is refused here, before a decoder allocates the image.
+    """
+    info, color_type = _parse_ihdr(handle.read(33), path)
+    handle.seek(0)
+    compressed = png_data_length(handle, size, path)
     samples = _PNG_SAMPLES[color_type]
     raw_bytes = info.height * (1 + (info.width * samples * info.bit_depth + 7) // 8)
-    compressed = png_data_length(io.BytesIO(data), len(data), path)
     if compressed * _DEFLATE_MAX_RATIO < raw_bytes:
         raise InputError(
             f"corrupt PNG file {path}: {compressed} bytes of image data cannot hold "
             f"{info.width}x{info.height} pixels"
         )
+    return info
+
+
+def check_png_file(path: str | os.PathLike) -> PngInfo:
+    """Check a PNG without decoding it: header, chunks, enough data; returns its header.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` is not a file.
+    InputError
+        Naming ``path``: not a PNG, truncated, or corrupt.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"file not found: {path}")
+    try:
+        with open(path, "rb") as handle:
+            return _png_structure(handle, os.fstat(handle.fileno()).st_size, path)
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def _decode_png(path) -> tuple[np.ndarray, PngInfo]:
+    """Decode a PNG to its integer array, (H, W) or (H, W, 3) RGB, alpha dropped."""
+    data = _read_bytes(path)
+    info = _png_structure(io.BytesIO(data), len(data), path)
     with quiet_stderr():
         raw = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     if raw is None:

@@ -4,42 +4,29 @@
 file stops a run before any work is done (and before anything is written), with
 a one-line :class:`~stereodeblur.errors.InputError` naming the first bad file and
 what was expected. Nothing is decoded: a PNG's signature, IHDR and chunk layout
-are read; a video is opened and its frame count compared with the frames needed.
+are read (:func:`~stereodeblur.io.formats.check_png_file`); a video is opened and
+its frame count compared with the frames needed.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable
 from pathlib import Path
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS
-from .formats import png_data_length, read_png_header
+from .formats import check_png_file
 from .kitti import KittiSource
 from .protocol import StereoScene
 from .scene import Scene
 from .video import VideoSource, video_frame_count
 
 
-def check_png_layout(path: Path) -> None:
-    """Walk the chunks of a PNG (lengths only, no decoding): IDAT present, IEND reached.
-
-    Raises :class:`InputError` naming ``path`` when the file is truncated or its
-    chunks do not add up.
-    """
-    try:
-        with open(path, "rb") as handle:
-            png_data_length(handle, os.fstat(handle.fileno()).st_size, path)
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
 def _png_frames(scene: StereoScene, files: Iterable[Path]) -> None:
     """Every PNG in ``files`` has the scene's size and channels and is complete."""
     height, width = scene.shape
     for path in files:
-        header = read_png_header(path)
+        header = check_png_file(path)
         if (header.height, header.width, header.channels) != (height, width, scene.channels):
             kind = "grey" if header.channels == 1 else "RGB"
             expected = "grey" if scene.channels == 1 else "RGB"
@@ -47,7 +34,6 @@ def _png_frames(scene: StereoScene, files: Iterable[Path]) -> None:
                 f"{path} is {header.width}x{header.height} {kind}, expected {width}x{height} "
                 f"{expected} like the other frames of {scene.name}"
             )
-        check_png_layout(path)
 
 
 def _video_frames(scene: VideoSource, views, last: int) -> None:
