@@ -150,3 +150,15 @@ def test_output_through_a_dangling_symlink_is_refused(tiny_scene, tmp_path, caps
     argv = ["sceneflow", tiny_scene, "--frame", "1", "-o", out]
     refused(capsys, argv, inputs=[tiny_scene], fragments=["out", "does not exist"])
     assert not (tmp_path / "nowhere").exists()
+
+
+@pytest.mark.parametrize("options", [["--motion-source", "gt"], []])
+def test_saved_sceneflow_needs_one_frame_and_the_sceneflow_source(tiny_scene, tmp_path, capsys,
+                                                                  options):  # fmt: skip
+    saved = tmp_path / "000001.npz"
+    np.savez(saved, labels=np.zeros((2, 2)))
+    out = tmp_path / "out"
+    argv = ["deblur", tiny_scene, "-o", out, "--sceneflow", saved, *options]
+    if options:
+        argv += ["--frames", "1"]
+    refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=["--sceneflow", "--frames"])

@@ -133,7 +133,7 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
     from ..pipeline import deblur_frame, neighbour_of, sceneflow_motion, with_boundary_flow
     from ..sceneflow.storage import load_sceneflow
 
-    if settings.motion_source == "initial-flow" or frames is None or len(frames) != 1:
+    if settings.motion_source != "sceneflow" or frames is None or len(frames) != 1:
         raise InputError(
             "--sceneflow FILE needs --frames with the one frame the file describes "
             "and --motion-source sceneflow"
