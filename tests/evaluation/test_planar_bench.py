@@ -15,3 +15,13 @@ def test_planar_row_has_gt_and_scene_flow_columns(tmp_path):
     table = format_table([row])
     assert table.count("\n") == 2 and "scene flow - gt" in table
     assert "estimated scene flow within 1 dB of the true motion on" in summary([row])
+
+
+def test_run_planar_bench_writes_the_table_it_returns(tmp_path):
+    from stereodeblur.evaluation.planar_bench import run_planar_bench
+
+    bench = run_planar_bench(tmp_path, sizes=[(64, 48)], scenes=["upward"])
+    (row,) = bench.rows
+    assert row.scene == "upward" and row.size == "64x48"
+    assert bench.markdown.read_text() == bench.table + "\n\n" + bench.summary + "\n"
+    assert '"psnr_homography"' in bench.json.read_text()
