@@ -28,14 +28,30 @@ def scene(tmp_path_factory):
     return open_scene(write_rendered_scene(rendered, tmp_path_factory.mktemp("s") / "squares"))
 
 
-def _count(monkeypatch, scene):
-    """Spy on frame reads, scene-flow estimates and the pipeline's dense flows."""
+def _count(monkeypatch, scene, trusts=None):
+    """Spy on frame reads, scene-flow estimates and the pipeline's dense flows (and, into
+    ``trusts``, the motion-trust maps and noise estimates)."""
+    from stereodeblur.deconv import noise, trust
     from stereodeblur.sceneflow import estimate, initial
 
     reads, estimates, flows = Counter(), [], []
     inside = []  # dense flows inside the estimator are its own business
     read_frame, estimate_scene_flow = scene.read_frame, estimate.estimate_scene_flow
     optical_flow = initial.initial_optical_flow
+    motion_trust, noise_sigma = trust.motion_trust, noise.estimate_noise_sigma
+    trusts = [] if trusts is None else trusts
+
+    def spy_trust(blurred, following, flow, **kwargs):
+        trusts.append(("trust", blurred.tobytes(), following.tobytes(), flow.tobytes()))
+        return motion_trust(blurred, following, flow, **kwargs)
+
+    def spy_noise(image):
+        if not inside:
+            trusts.append(("noise", image.tobytes()))
+        return noise_sigma(image)
+
+    monkeypatch.setattr(trust, "motion_trust", spy_trust)
+    monkeypatch.setattr(noise, "estimate_noise_sigma", spy_noise)
 
     def spy_read(view, index, **kwargs):
         reads[view, index] += 1
@@ -62,7 +78,8 @@ def _count(monkeypatch, scene):
 
 @pytest.mark.parametrize("index", [1, 2])
 def test_a_stereo_frame_reads_and_estimates_everything_once(scene, monkeypatch, index):
-    reads, estimates, flows = _count(monkeypatch, scene)
+    trusts = []
+    reads, estimates, flows = _count(monkeypatch, scene, trusts)
     result = deblur_stereo_frame(scene, index, settings=ESTIMATED)
     assert set(result.frames) == {"left", "right"}
     window = {1: (0, 1, 2), 2: (1, 2)}[index]
@@ -74,6 +91,10 @@ def test_a_stereo_frame_reads_and_estimates_everything_once(scene, monkeypatch, 
     assert np.array_equal(
         result.motion.views["left"].boundary_flow[0], result.motion.estimate.initial_flow
     )
+    # Per view one noise estimate; the trust of the motion used (the dense flow near motion
+    # boundaries) and of the scene flow's own (for alpha), per neighbouring frame: no repeats.
+    assert [kind for kind, *_ in trusts].count("noise") == 2
+    assert len(trusts) == len(set(trusts)) == 2 + 2 * 2 * {1: 2, 2: 1}[index]
 
 
 def test_true_motion_reads_each_frame_once(scene, monkeypatch):

@@ -64,14 +64,16 @@ class _MaskedUpdate:
 
 
 def frame_trust(
-    window: FrameWindow, view: str, motion: FrameMotion, *, noise_sigma: float
+    window: FrameWindow, view: str, motion: FrameMotion, *, noise_sigma: float, band=None
 ) -> np.ndarray:
     """Trust in ``motion`` near its flow discontinuities, 1 elsewhere, float32 ``(H, W)``.
 
     The better of the predictions of the neighbouring frames that exist, each along the
     flow that leads to it (:func:`~stereodeblur.deconv.trust.motion_trust`). Occlusions
     show as large residuals, and what is covered on one side is seen on the other; the
-    scene flow's occlusion mask is wider than that and is not used.
+    scene flow's occlusion mask is wider than that and is not used. ``band``: the pixels
+    near the motion's flow discontinuities, if already known
+    (:func:`~stereodeblur.deconv.trust.near_motion_boundaries` of ``motion.flow_forward``).
     """
     from ..deconv.trust import motion_trust, near_motion_boundaries
 
@@ -82,7 +84,8 @@ def frame_trust(
         preceding = window.frame(view, window.other)
         backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=noise_sigma)
         trust = np.maximum(trust, backward)
-    band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
+    if band is None:
+        band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
     return np.where(band, trust, 1.0).astype(np.float32)
 
 
@@ -153,8 +156,8 @@ def data_terms(
         trust = alpha_trust = frame_trust(window, view, motion, noise_sigma=sigma)
         anchor = None if dense_rows else trust_anchor(trust)
         if dense_rows and settings.alpha == "auto":
-            own = view_operator.own
-            alpha_trust = frame_trust(window, view, own, noise_sigma=sigma)
+            own, band = view_operator.own, view_operator.flow_rows  # the own flow's band
+            alpha_trust = frame_trust(window, view, own, noise_sigma=sigma, band=band)
     if settings.boundary_mask == "gt":
         keep = _gt_mask(scene, view, window.index)
         weights = weights * keep
