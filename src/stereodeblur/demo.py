@@ -16,6 +16,7 @@ if TYPE_CHECKING:
 
 DEMO_SCENE = "yaw"
 DEMO_FRAME = 1
+DEMO_SIZE = (320, 240)
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ def side_by_side(images: list[np.ndarray], *, gap: int = 4) -> np.ndarray:
 def run_demo(
     output: str | os.PathLike,
     *,
-    size: tuple[int, int] = (320, 240),
+    size: tuple[int, int] = DEMO_SIZE,
     settings: DeblurSettings | None = None,
     progress: ProgressCallback | None = None,
 ) -> DemoResult:

@@ -45,6 +45,11 @@ def size(text: str) -> tuple[int, int]:
     return width, height
 
 
+def size_text(value: tuple[int, int]) -> str:
+    """``(640, 480)`` -> ``'640x480'`` (a default for a size option)."""
+    return f"{value[0]}x{value[1]}"
+
+
 def sizes(text: str) -> tuple[tuple[int, int], ...]:
     """Option type: comma-separated ``WIDTHxHEIGHT`` sizes."""
     return tuple(size(part.strip()) for part in text.split(","))

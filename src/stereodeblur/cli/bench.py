@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import argparse
 
-from .base import Parser, add_quiet, integer, names, size, sizes
+from ..evaluation import paper_bench, planar_bench, sceneflow_bench
+from .base import Parser, add_quiet, integer, names, size, size_text, sizes
 from .printer import progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
 
@@ -34,7 +35,10 @@ def _add_planar(bench) -> None:
         "true motion on physically rendered planar scenes.",
     )
     q.add_argument(
-        "--sizes", type=sizes, default="320x240,640x480", help="comma-separated WIDTHxHEIGHT"
+        "--sizes",
+        type=sizes,
+        default=",".join(map(size_text, planar_bench.SIZES)),
+        help="comma-separated WIDTHxHEIGHT (default: %(default)s)",
     )
     q.add_argument("--scenes", type=names, help="comma-separated motion names (default: all)")
     q.add_argument("--work", default="bench-planar", help="folder for rendered scenes and results")
@@ -49,14 +53,24 @@ def _add_sceneflow(bench) -> None:
         description="Scene-flow accuracy on the synthetic scenes (inputs blurred) and the "
         "Middlebury motorcycle pair as a static clip.",
     )
-    q.add_argument("--sizes", type=sizes, default="640x480", help="comma-separated WIDTHxHEIGHT")
+    q.add_argument(
+        "--sizes",
+        type=sizes,
+        default=",".join(map(size_text, sceneflow_bench.SIZES)),
+        help="comma-separated WIDTHxHEIGHT (default: %(default)s)",
+    )
     q.add_argument(
         "--scenes",
         type=names,
         help="comma-separated planar motions and object scenes, NAME_noisy for the noisy "
         "variant (default: every planar motion and noiseless object scene)",
     )
-    q.add_argument("--frame", type=integer(0), default=1, help="frame whose motion is estimated")
+    q.add_argument(
+        "--frame",
+        type=integer(0),
+        default=sceneflow_bench.FRAME,
+        help="frame whose motion is estimated",
+    )
     q.add_argument("--work", default="bench-sceneflow", help="folder for scenes and results")
     q.add_argument("--no-motorcycle", action="store_true", help="skip the motorcycle check")
     add_quiet(q)
@@ -73,7 +87,10 @@ def _add_paper(bench) -> None:
         "a figure per scene. Resumable: results are cached in the work folder.",
     )
     q.add_argument(
-        "--size", type=size, default="640x480", help="WIDTHxHEIGHT (default: %(default)s)"
+        "--size",
+        type=size,
+        default=size_text(paper_bench.SIZE),
+        help="WIDTHxHEIGHT (default: %(default)s)",
     )
     q.add_argument(
         "--scenes",
@@ -89,7 +106,7 @@ def _add_paper(bench) -> None:
     q.add_argument(
         "--render-samples",
         type=integer(*RENDER_SAMPLES),
-        default=48,
+        default=paper_bench.RENDER_SAMPLES,
         help="instants averaged per rendered frame",
     )
     add_quiet(q)

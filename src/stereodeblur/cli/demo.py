@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from .base import add_quiet, size
+from ..demo import DEMO_SIZE
+from .base import add_quiet, size, size_text
 from .printer import progress_printer
 
 SUBFOLDERS = ("scene", "deblurred")
@@ -19,7 +20,10 @@ def add_parser(sub) -> None:
     )
     p.add_argument("-o", "--output", default="stereodeblur-demo", help="output folder")
     p.add_argument(
-        "--size", type=size, default="320x240", help="WIDTHxHEIGHT (default: %(default)s)"
+        "--size",
+        type=size,
+        default=size_text(DEMO_SIZE),
+        help="WIDTHxHEIGHT (default: %(default)s)",
     )
     add_quiet(p)
     p.set_defaults(func=run)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from .base import size
+from ..evaluation import kernels_figure
+from .base import size, size_text
 
 
 def add_parser(sub) -> None:
@@ -16,12 +17,23 @@ def add_parser(sub) -> None:
     )
     p.add_argument("-o", "--output", required=True, help="output PNG")
     p.add_argument(
-        "--size", type=size, default="320x240", help="WIDTHxHEIGHT (default: %(default)s)"
+        "--size",
+        type=size,
+        default=size_text(kernels_figure.SIZE),
+        help="WIDTHxHEIGHT (default: %(default)s)",
     )
     p.add_argument(
-        "--yaw", type=float, default=0.3, help="radians per frame interval (default: %(default)s)"
+        "--yaw",
+        type=float,
+        default=kernels_figure.YAW,
+        help="radians per frame interval (default: %(default)s)",
     )
-    p.add_argument("--depth", type=float, default=3.0, help="plane distance in metres")
+    p.add_argument(
+        "--depth",
+        type=float,
+        default=kernels_figure.DEPTH,
+        help="plane distance in metres (default: %(default)s)",
+    )
     p.set_defaults(func=run)
 
 

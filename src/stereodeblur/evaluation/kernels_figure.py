@@ -32,6 +32,11 @@ import numpy as np
 from ..errors import InputError
 from ..settings import NUM_SAMPLES
 
+# The figure's defaults: a small frame, the paper's "extremely large yaw angle", 3 m away.
+SIZE = (320, 240)
+YAW = 0.3
+DEPTH = 3.0
+
 
 @dataclass(frozen=True, eq=False)
 class KernelGrid:
@@ -101,9 +106,9 @@ def yaw_sceneflow(size: tuple[int, int], *, yaw: float, depth: float):
 
 def kernel_grid(
     *,
-    size: tuple[int, int] = (320, 240),
-    yaw: float = 0.3,
-    depth: float = 3.0,
+    size: tuple[int, int] = SIZE,
+    yaw: float = YAW,
+    depth: float = DEPTH,
     grid: tuple[int, int] = (5, 4),
     num_samples: int = NUM_SAMPLES,
     inset: float = 0.1,

@@ -57,6 +57,7 @@ NEAR_MIXED_PX = 3.0
 FLOW_ERROR_PX = 1.0
 CHANGE = 0.05
 RENDER_SAMPLES = 48
+SIZE = (640, 480)
 DIFFERENCE_GAIN = 4.0
 
 
@@ -380,7 +381,7 @@ def bench_columns(*, alpha_sweep: bool = False, masked: bool = True) -> list[Col
 def run_paper_bench(
     work: str | os.PathLike,
     *,
-    size: tuple[int, int] = (640, 480),
+    size: tuple[int, int] = SIZE,
     scenes: Sequence[str] | None = None,
     settings=None,
     alpha_sweep: bool = False,

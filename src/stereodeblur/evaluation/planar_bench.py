@@ -22,6 +22,7 @@ from pathlib import Path
 from ..progress import ProgressCallback, report
 
 FRAME = 1
+SIZES = ((320, 240), (640, 480))
 
 
 @dataclass(frozen=True)
@@ -139,7 +140,7 @@ class PlanarBench:
 def run_planar_bench(
     work: str | os.PathLike,
     *,
-    sizes: Sequence[tuple[int, int]] = ((320, 240), (640, 480)),
+    sizes: Sequence[tuple[int, int]] = SIZES,
     scenes: Sequence[str] | None = None,
     progress: ProgressCallback | None = None,
 ) -> PlanarBench:

@@ -49,6 +49,8 @@ from .metrics import disparity_error, endpoint_error
 
 MOTORCYCLE_K = np.array([[994.978, 0.0, 311.193], [0.0, 994.978, 254.877], [0.0, 0.0, 1.0]])
 MOTORCYCLE_BASELINE = 0.193001
+SIZES = ((640, 480),)
+FRAME = 1
 
 
 @dataclass(frozen=True)
@@ -362,9 +364,9 @@ class SceneFlowBench:
 def run_sceneflow_bench(
     work: str | os.PathLike,
     *,
-    sizes: Sequence[tuple[int, int]] = ((640, 480),),
+    sizes: Sequence[tuple[int, int]] = SIZES,
     scenes: Sequence[str] | None = None,
-    frame: int = 1,
+    frame: int = FRAME,
     motorcycle: bool = True,
     progress: ProgressCallback | None = None,
 ) -> SceneFlowBench:
