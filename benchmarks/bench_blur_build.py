@@ -13,8 +13,14 @@ reported separately. Each operator is then built ``--repeats`` times; the
 script prints the median build time, nnz, matrix memory (CSR of A and of A^T),
 the peak memory one build adds (resident memory sampled every millisecond
 during the build, minus the memory before it), the median time of one forward and one adjoint on an
-RGB float32 image (numba kernels, and scipy's SpMV for comparison) and the peak
-resident memory of the whole process so far.
+RGB float32 image (numba kernels, and scipy's SpMV for comparison), of one Gram product
+``A^T W^2 A`` (``SparseBlur.gram``, what every CG step of the deconvolution takes), and
+the peak resident memory of the whole process so far.
+
+The memory-bandwidth floor: the script first measures this machine's streaming bandwidth
+(a triad ``a = b + s c`` and a plain read over 64 MiB arrays, on all numba threads), then
+for every operator the time to just read its CSR arrays once on those threads
+(``stream``): no product that reads the matrix once can be faster.
 
 Run: ``python benchmarks/bench_blur_build.py [--sizes 320x240 640x480 1242x375]``
 """
@@ -27,9 +33,13 @@ import gc
 import resource
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
+from itertools import pairwise
 
+import numba
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from stereodeblur.blur.displacement import displacement_blur
@@ -124,6 +134,52 @@ def timed(fn, repeats: int) -> tuple[float, object]:
     return float(np.median(times)), result
 
 
+@njit(nogil=True, fastmath=True, cache=True)
+def _read(first, last, indices, data):
+    """Sum of ``data + indices`` over ``first .. last - 1``: one streaming read of both."""
+    total = 0.0
+    count = 0
+    for k in range(first, last):
+        total += data[k]
+        count += indices[k]
+    return total + count
+
+
+@njit(nogil=True, fastmath=True, cache=True)
+def _triad(first, last, a, b, c):
+    for k in range(first, last):
+        a[k] = b[k] + np.float32(0.5) * c[k]
+
+
+_POOL = ThreadPoolExecutor(numba.get_num_threads())
+
+
+def _on_threads(function, size: int, *arrays) -> None:
+    """``function(first, last, *arrays)`` on equal ranges of ``size``, one per thread."""
+    bounds = np.linspace(0, size, _POOL._max_workers + 1).astype(np.int64)
+    futures = [_POOL.submit(function, int(a), int(b), *arrays) for a, b in pairwise(bounds)]
+    for future in futures:
+        future.result()
+
+
+def bandwidth_gb_s(repeats: int) -> tuple[float, float]:
+    """Streaming bandwidth (triad, read) in GB/s over 64 MiB float32 arrays, all threads."""
+    n = 1 << 24
+    a, b, c = (np.full(n, v, np.float32) for v in (0.0, 1.0, 2.0))
+    ints = np.ones(n, np.int32)
+    _triad(0, 1, a, b, c), _read(0, 1, ints, b)  # compile first
+    triad = timed(lambda: _on_threads(_triad, n, a, b, c), repeats)[0]
+    read = timed(lambda: _on_threads(_read, n, ints, b), repeats)[0]
+    return 3 * a.nbytes / triad / 1e9, 2 * b.nbytes / read / 1e9
+
+
+def stream_seconds(op, repeats: int) -> float:
+    """Median seconds to read ``op``'s CSR values and indices once, on all threads."""
+    m = op.matrix
+    _on_threads(_read, m.nnz, m.indices, m.data)  # warm-up
+    return timed(lambda: _on_threads(_read, m.nnz, m.indices, m.data), repeats)[0]
+
+
 def matrix_mb(op) -> float:
     total = 0
     for m in (op.matrix, op._matrix_t):
@@ -135,7 +191,10 @@ def apply_times(op, image: np.ndarray, repeats: int) -> dict[str, float]:
     """Median seconds of one forward and one adjoint: numba kernels, and scipy's SpMV."""
     flat = image.reshape(-1, image.shape[2])
     A, At = op.matrix, op._matrix_t
+    squared = np.random.default_rng(2).uniform(0, 1, op.shape).astype(np.float32)
     return {
+        "stream": stream_seconds(op, repeats),
+        "gram": timed(lambda: op.gram(image, squared), repeats)[0],
         "forward": timed(lambda: op.forward(image), repeats)[0],
         "adjoint": timed(lambda: op.adjoint(image), repeats)[0],
         "scipy forward": timed(lambda: A @ flat, repeats)[0],
@@ -157,6 +216,11 @@ def main(argv=None) -> None:
     print(
         f"exposure duty cycle {EXPOSURE.duty_cycle}, N = {NUM_SAMPLES}, "
         f"repeats {args.repeats} (median)"
+    )
+    triad, read = bandwidth_gb_s(args.repeats)
+    print(
+        f"streaming bandwidth, {numba.get_num_threads()} threads: "
+        f"triad {triad:.1f} GB/s, read {read:.1f} GB/s"
     )
     compiled = False
     for size in args.sizes:
@@ -196,7 +260,8 @@ def main(argv=None) -> None:
                 f"   build peak +{build_peak_mb(build):5.0f} MB\n"
                 f"  {'':12s} RGB float32: forward {ms['forward']:5.1f} ms, adjoint "
                 f"{ms['adjoint']:5.1f} ms (scipy {ms['scipy forward']:5.1f} / "
-                f"{ms['scipy adjoint']:5.1f} ms)   process peak RSS {peak_rss_mb():5.0f} MB"
+                f"{ms['scipy adjoint']:5.1f} ms), gram {ms['gram']:5.1f} ms; reading the "
+                f"matrix once {ms['stream']:5.1f} ms   process peak RSS {peak_rss_mb():5.0f} MB"
             )
             del op
         compiled = True

@@ -5,12 +5,17 @@ Run from the repository root::
     python benchmarks/bench_irls.py                 # all sizes, 3 runs each
     python benchmarks/bench_irls.py --runs 5 --sizes 640x480
 
+    python benchmarks/bench_irls.py --plain         # CG products as forward then adjoint
+
 Each size runs in its own subprocess so that the reported peak resident memory
-(``resource.getrusage``) belongs to that size alone. Reported per size: the median wall
-time of ``deblur_irls`` over the runs (numba compilation excluded by a warm-up), the part
-of it spent inside the operator's ``forward`` / ``adjoint`` (the sparse products), the
-rest (CG vectors, gradients, weights: this module's own cost), the operator's nonzeros
-per row, and the peak RSS of the subprocess.
+(``resource.getrusage``) belongs to that size alone. Reported per size: the median and
+minimum wall time of ``deblur_irls`` over the runs (numba compilation excluded by a
+warm-up) and its median CPU time (all threads), the part of the wall time spent inside
+the operator's ``forward`` / ``adjoint`` / ``gram`` (the sparse products), the rest (CG
+vectors, gradients, weights: the solver's own cost), the median time of one RGB
+``forward`` (``A I``) and one RGB ``gram`` (``A^T W^2 A I``, what each CG step uses),
+the operator's nonzeros per row, and the peak RSS of the subprocess. ``--plain`` hides
+``gram`` from the solver, which then takes a ``forward`` and an ``adjoint`` per CG step.
 
 Operators: ``synthetic`` is a spatially varying motion blur built here with scipy.sparse
 (length 5-25 px, slightly tilted from horizontal, bilinear along y, about 30 nonzeros per
@@ -100,12 +105,20 @@ def homography_operator(height: int, width: int, seed: int = 0):
 
 
 class TimedOperator:
-    """Wraps an operator and accumulates the seconds spent in ``forward`` / ``adjoint``."""
+    """Wraps an operator and accumulates the seconds spent in its products."""
 
-    def __init__(self, operator):
+    def __init__(self, operator, *, plain: bool = False):
         self.operator = operator
         self.shape = operator.shape
         self.seconds = 0.0
+        if not plain:
+            self.gram = self._gram
+
+    def _gram(self, image, squared_weights=None):
+        start = time.perf_counter()
+        out = self.operator.gram(image, squared_weights)
+        self.seconds += time.perf_counter() - start
+        return out
 
     def forward(self, image):
         start = time.perf_counter()
@@ -127,7 +140,18 @@ def natural_image(height: int, width: int) -> np.ndarray:
     return transform.resize(image, (height, width, 3), anti_aliasing=True).astype(np.float32)
 
 
-def run_one(width: int, height: int, kind: str, runs: int) -> dict | None:
+def product_seconds(function, image, repeats: int = 20) -> float:
+    """Median wall time of ``function(image)`` after one warm-up call."""
+    function(image)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function(image)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def run_one(width: int, height: int, kind: str, runs: int, plain: bool) -> dict | None:
     from stereodeblur.deconv import deblur_irls
 
     start = time.perf_counter()
@@ -143,12 +167,13 @@ def run_one(width: int, height: int, kind: str, runs: int) -> dict | None:
     blurred = blurred.astype(np.float32)
     # Warm-up: compiles (or loads from cache) the numba kernels, excluded from the timings.
     deblur_irls(blurred[:16, :16], synthetic_blur(16, 16), num_irls=1, num_cg=2)
-    totals, operator_seconds = [], []
+    totals, cpu, operator_seconds = [], [], []
     for _ in range(runs):
-        timed = TimedOperator(operator)
-        start = time.perf_counter()
+        timed = TimedOperator(operator, plain=plain)
+        start, start_cpu = time.perf_counter(), time.process_time()
         result = deblur_irls(blurred, timed)
         totals.append(time.perf_counter() - start)
+        cpu.append(time.process_time() - start_cpu)
         operator_seconds.append(timed.seconds)
 
     def psnr(image):
@@ -162,7 +187,11 @@ def run_one(width: int, height: int, kind: str, runs: int) -> dict | None:
         "nnz_per_row": operator.matrix.nnz / (width * height),
         "build_s": build_seconds,
         "median_s": median,
+        "min_s": min(totals),
+        "cpu_s": statistics.median(cpu),
         "runs_s": totals,
+        "forward_ms": 1e3 * product_seconds(operator.forward, sharp),
+        "gram_ms": 1e3 * product_seconds(operator.gram, sharp),
         "operator_s": median_operator,
         "own_s": median - median_operator,
         "psnr_blurred": psnr(blurred),
@@ -176,21 +205,24 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--sizes", nargs="*", default=[f"{w}x{h}" for w, h in SIZES])
     parser.add_argument("--operators", nargs="*", default=["synthetic", "homography"])
+    parser.add_argument("--plain", action="store_true", help="forward then adjoint, no gram")
     parser.add_argument("--single", nargs=2, metavar=("SIZE", "OPERATOR"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.single:
         width, height = (int(v) for v in args.single[0].split("x"))
-        print(json.dumps(run_one(width, height, args.single[1], args.runs)))
+        print(json.dumps(run_one(width, height, args.single[1], args.runs, args.plain)))
         return
     header = (
-        f"{'size':>9} {'operator':>10} {'nnz/row':>7} {'median s':>8} {'in A s':>7} "
-        f"{'own s':>6} {'PSNR in':>7} {'PSNR out':>8} {'RSS MB':>7}"
+        f"{'size':>9} {'operator':>10} {'nnz/row':>7} {'median s':>8} {'min s':>6} "
+        f"{'CPU s':>6} {'in A s':>7} {'own s':>6} {'A ms':>5} {'gram ms':>7} "
+        f"{'PSNR in':>7} {'PSNR out':>8} {'RSS MB':>7}"
     )
     print(header)
     for size in args.sizes:
         for kind in args.operators:
             output = subprocess.run(
-                [sys.executable, __file__, "--single", size, kind, "--runs", str(args.runs)],
+                [sys.executable, __file__, "--single", size, kind, "--runs", str(args.runs)]
+                + (["--plain"] if args.plain else []),
                 check=True,
                 capture_output=True,
                 text=True,
@@ -201,7 +233,9 @@ def main() -> None:
                 continue
             print(
                 f"{row['size']:>9} {row['operator']:>10} {row['nnz_per_row']:7.1f} "
-                f"{row['median_s']:8.2f} {row['operator_s']:7.2f} {row['own_s']:6.2f} "
+                f"{row['median_s']:8.2f} {row['min_s']:6.2f} {row['cpu_s']:6.2f} "
+                f"{row['operator_s']:7.2f} {row['own_s']:6.2f} "
+                f"{row['forward_ms']:5.1f} {row['gram_ms']:7.1f} "
                 f"{row['psnr_blurred']:7.2f} {row['psnr_deblurred']:8.2f} "
                 f"{row['peak_rss_mb']:7.0f}",
                 flush=True,
