@@ -115,9 +115,10 @@ def _deblur_clip(args, settings, spec, frames, views) -> int:
     failed = report.failed
     if failed:
         first = failed[0]
+        log = f"; see {report.log}" if report.log is not None and report.log.is_file() else ""
         print(
             f"stereodeblur: error: {len(failed)} of {len(report.records)} frame(s) failed "
-            f"(first: frame {first.index} {first.view}: {first.error}); see {report.log}",
+            f"(first: frame {first.index} {first.view}: {first.error}){log}",
             file=sys.stderr,
         )
         return EXIT_USAGE if all(r.input_error for r in failed) else 1
