@@ -26,8 +26,10 @@ from stereodeblur.io.formats import (
     PngInfo,
     check_png_file,
     read_flo,
+    read_flo_header,
     read_mask,
     read_pfm,
+    read_pfm_header,
     read_png,
     read_png_header,
 )
@@ -383,11 +385,24 @@ def test_kitti_timestamps(folder, lines):
 # --------------------------------------------------------------------------- PFM and FLO
 
 
+def _check_pfm_flo(folder, data):
+    """The full readers and the header-only readers agree on every file."""
+    for reader, header_reader, name in (
+        (read_pfm, read_pfm_header, "a.pfm"),
+        (read_flo, read_flo_header, "a.flo"),
+    ):
+        value = _parse(reader, folder / name, data)
+        header = _parse(header_reader, folder / name, data)
+        assert (value is None) == (header is None)
+        if value is not None:
+            assert value.shape[:2] == (header[1], header[0])
+    return value
+
+
 @FUZZ
 @given(data=st.binary(max_size=400))
 def test_pfm_and_flo_arbitrary_bytes(folder, data):
-    for reader, name in ((read_pfm, "a.pfm"), (read_flo, "a.flo")):
-        _parse(reader, folder / name, data)
+    _check_pfm_flo(folder, data)
 
 
 @FUZZ
@@ -410,6 +425,7 @@ def test_pfm_structured_headers(folder, kind, width, height, scale, separators, 
         count = 4
     body = bytes(np.arange(max(0, min(4 * count + extra, 4000)), dtype=np.uint8) % 251)
     value = _parse(read_pfm, folder / "b.pfm", header + body)
+    assert (value is None) == (_parse(read_pfm_header, folder / "b.pfm", header + body) is None)
     if value is not None:
         assert value.dtype == np.float32 and value.shape[:2] == (int(height), int(width))
 
@@ -425,6 +441,9 @@ def test_flo_structured_headers(folder, magic, width, height, extra):
     header = struct.pack("<fii", magic, width, height)
     count = max(0, min(width * height * 8 + extra, 4000)) if width > 0 and height > 0 else 8
     value = _parse(read_flo, folder / "b.flo", header + bytes(count))
+    assert (value is None) == (
+        _parse(read_flo_header, folder / "b.flo", header + bytes(count)) is None
+    )
     if value is not None:
         assert value.shape == (height, width, 2) and value.dtype == np.float32
 

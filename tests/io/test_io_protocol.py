@@ -12,7 +12,7 @@ from stereodeblur.errors import InputError
 from stereodeblur.io.formats import check_png_file
 from stereodeblur.io.frame_source import FrameSource
 from stereodeblur.io.protocol import StereoScene
-from stereodeblur.io.readable import check_readable
+from stereodeblur.io.readable import check_files, check_readable
 from stereodeblur.io.scene import scene_path
 from stereodeblur.io.sources import open_source
 from stereodeblur.io.video import write_video
@@ -185,3 +185,23 @@ def test_png_layout_rejects_data_without_idat(tmp_path):
     bad.write_bytes(data[:33] + b"\xff\xff\xff\xffIDAT")
     with pytest.raises(InputError, match="truncated PNG file"):
         check_png_file(bad)
+
+
+def test_check_files_reads_ground_truth_headers(tmp_path):
+    scene = open_source(write_tiny_scene(tmp_path / "s", num_frames=3))
+    size = (scene.shape[1], scene.shape[0])
+    paths = [scene.gt_path(kind, "left", 1) for kind in ("sharp", "disparity", "flow")]
+    check_files(paths, size=size)
+    with pytest.raises(InputError, match=r"000001.pfm is 40x32, expected 41x32 like the frames"):
+        check_files(paths[1:], size=(41, 32))
+    disparity, flow = paths[1], paths[2]
+    flow.write_bytes(flow.read_bytes()[:-8])
+    with pytest.raises(InputError, match=f"corrupt FLO file {flow}: expected 10240 data bytes"):
+        check_files(paths, size=size)
+    disparity.write_bytes(b"Pf\n40 32\n-1\n" + bytes(16))
+    with pytest.raises(InputError, match=f"corrupt PFM file {disparity}: expected 5120 data"):
+        check_files([disparity])
+    with pytest.raises(FileNotFoundError, match="000002.flo"):
+        check_files([scene.gt_path("flow", "left", 2)])
+    with pytest.raises(InputError, match="expected a .png, .pfm or .flo file"):
+        check_files([scene.root / "camera.json"])

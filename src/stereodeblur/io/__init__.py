@@ -15,7 +15,7 @@ from .formats import (
     write_png,
 )
 from .protocol import StereoScene
-from .readable import check_readable
+from .readable import check_files, check_readable
 from .scene import (
     CameraInfo,
     Scene,
@@ -32,6 +32,7 @@ __all__ = [
     "Scene",
     "SceneWriter",
     "StereoScene",
+    "check_files",
     "check_readable",
     "linear_to_srgb",
     "open_scene",

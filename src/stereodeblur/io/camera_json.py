@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.camera import Exposure, StereoCamera
-from .formats import _atomic_write
+from .files import atomic_write
 
 FORMAT = "stereo-video/1"
 COLORS = ("linear", "srgb")
@@ -150,4 +150,4 @@ def write_camera(path: str | os.PathLike, info: CameraInfo) -> Path:
     """Write ``info`` to ``camera.json`` at ``path`` (atomically)."""
     if not isinstance(info, CameraInfo):
         raise InputError(f"info must be a CameraInfo, got {type(info).__name__}")
-    return _atomic_write(path, _camera_json(info).encode("utf-8"))
+    return atomic_write(path, _camera_json(info).encode("utf-8"))

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import InputError
 from ..geometry.camera import VIEWS, Exposure, StereoCamera
 from .camera_json import COLORS, CameraInfo
-from .formats import srgb_to_linear
+from .srgb import srgb_to_linear
 
 
 class FrameSource:

@@ -40,9 +40,9 @@ import numpy as np
 
 from ..errors import InputError
 from .calibration import stereo_from_projections
-from .formats import read_png, read_png_header
 from .frame_source import FrameSource, camera_info
 from .intrinsics import check_intrinsics
+from .png import read_png, read_png_header
 from .scene import check_frame_size
 
 KITTI_FRAME_RATE = 10.0

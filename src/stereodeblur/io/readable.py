@@ -15,8 +15,9 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS
-from .formats import check_png_file
+from .formats import read_flo_header, read_pfm_header
 from .kitti import KittiSource
+from .png import check_png_file
 from .protocol import StereoScene
 from .scene import Scene
 from .video import VideoSource, video_frame_count
@@ -84,3 +85,34 @@ def check_readable(
         _video_frames(scene, views, indices[-1])
     else:
         raise TypeError(f"check_readable: unsupported source {type(scene).__name__}")
+
+
+def check_files(paths: Iterable, *, size: tuple[int, int] | None = None) -> None:
+    """Check ground-truth or other single files up front, by their headers only.
+
+    ``.png`` (:func:`~stereodeblur.io.png.check_png_file`), ``.pfm`` and ``.flo``
+    (header and file size) are understood; with ``size = (width, height)`` each
+    must also have that size, like the frames it belongs to.
+
+    Raises
+    ------
+    InputError
+        Naming the first bad file and what was expected.
+    FileNotFoundError
+        When a file is missing.
+    """
+    for path in map(Path, paths):
+        suffix = path.suffix.lower()
+        if suffix == ".png":
+            header = check_png_file(path)
+            found = (header.width, header.height)
+        elif suffix == ".pfm":
+            found = read_pfm_header(path)[:2]
+        elif suffix == ".flo":
+            found = read_flo_header(path)
+        else:
+            raise InputError(f"cannot check {path}: expected a .png, .pfm or .flo file")
+        if size is not None and tuple(found) != tuple(size):
+            raise InputError(
+                f"{path} is {found[0]}x{found[1]}, expected {size[0]}x{size[1]} like the frames"
+            )

@@ -37,22 +37,18 @@ from .camera_json import (
     read_camera,
     write_camera,
 )
-from .formats import (
+from .formats import read_flo, read_pfm, write_flo, write_pfm
+from .intrinsics import check_intrinsics
+from .png import (
     PngInfo,
     _check_image,
-    linear_to_srgb,
-    read_flo,
     read_mask,
-    read_pfm,
     read_png,
     read_png_header,
-    srgb_to_linear,
-    write_flo,
     write_mask,
-    write_pfm,
     write_png,
 )
-from .intrinsics import check_intrinsics
+from .srgb import linear_to_srgb, srgb_to_linear
 
 GT_KINDS = ("sharp", "disparity", "flow", "mixed")
 _EXTENSIONS = {"frame": "png", "sharp": "png", "disparity": "pfm", "flow": "flo", "mixed": "png"}

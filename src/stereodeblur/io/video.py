@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import InputError
 from .calibration import check_image_size, read_stereo_calibration
-from .formats import quiet_stderr
+from .files import quiet_stderr
 from .frame_source import FrameSource, camera_info
 from .scene import check_frame_size
 
