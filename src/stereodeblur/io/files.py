@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import sys
 import threading
 from pathlib import Path
 
@@ -62,12 +63,19 @@ def quiet_stderr():
         if _quiet_state["depth"] == 0:
             _quiet_state["level"] = cv2.utils.logging.getLogLevel()
             cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+            if sys.stderr is not None:
+                sys.stderr.flush()  # what Python already wrote still reaches the terminal
             try:
                 saved = os.dup(2)
-                with open(os.devnull, "wb") as null:
-                    os.dup2(null.fileno(), 2)
             except OSError:  # no fd 2 (detached process): nothing to silence
                 saved = None
+            if saved is not None:
+                try:
+                    with open(os.devnull, "wb") as null:
+                        os.dup2(null.fileno(), 2)
+                except OSError:
+                    os.close(saved)
+                    saved = None
             _quiet_state["saved"] = saved
         _quiet_state["depth"] += 1
     try:
