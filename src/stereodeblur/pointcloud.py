@@ -33,7 +33,8 @@ import numpy as np
 
 from .errors import InputError
 from .geometry.rigid import so3_exp
-from .io.formats import _atomic_write, linear_to_srgb
+from .io.formats import linear_to_srgb
+from .io.outputs import atomic_write
 
 COLOR_SETS = ("deblurred", "blurred", "both")
 _PLY_TYPES = {
@@ -158,7 +159,7 @@ def write_ply(path: str | os.PathLike, cloud: PointCloud, *, comments=()) -> Pat
         lines.append(f"property {'float' if kind == '<f4' else 'uchar'} {name}")
     lines.append("end_header")
     header = ("\n".join(lines) + "\n").encode("ascii")
-    return _atomic_write(path, header + vertices.tobytes())
+    return atomic_write(path, header + vertices.tobytes())
 
 
 def _parse_header(data: bytes, path: Path):

@@ -67,6 +67,12 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     monkeypatch.setattr(paper_bench, "run_column", None)
     assert main([*TINY, "--work", str(work)]) == 0
     assert "Table 3" in capsys.readouterr().out
+    # A damaged cache entry (an interrupted write from outside) is computed again.
+    monkeypatch.undo()
+    damaged = folder / "cache" / "squares" / "homographies.json"
+    damaged.write_text('{"column": "homogr')
+    assert main([*TINY, "--work", str(work)]) == 0
+    assert json.loads(damaged.read_text())["column"] == "homographies"
 
 
 def test_weight_statistics_count_low_weights_near_boundaries_and_flow_errors():

@@ -23,6 +23,7 @@ flow, initial flow, one JSON and one PNG per column), ``WORK/SIZE/figures/NAME.p
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -36,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.outputs import atomic_write, atomic_write_text
 from ..progress import ProgressCallback, report
 from .paper_columns import (
     ALPHA_SWEEP,
@@ -163,7 +165,9 @@ def cached_motion(scene, source: str, settings, cache: Path):
         save_sceneflow(path, motion.sceneflow)
     elif source == "initial-flow":
         backward = np.zeros(0) if motion.flow_backward is None else motion.flow_backward
-        np.savez_compressed(path, forward=motion.flow_forward, backward=backward)
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, forward=motion.flow_forward, backward=backward)
+        atomic_write(path, buffer.getvalue())
     return motion, seconds, messages
 
 
@@ -251,6 +255,15 @@ def _signature(column: Column, settings) -> dict:
     return {**asdict(column.settings(settings)), "frame": FRAME}
 
 
+def _read_cached(path: Path) -> dict | None:
+    """A cached column result, or None when there is none or it is unreadable."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
 # --- one scene ------------------------------------------------------------------------------
 
 
@@ -284,11 +297,10 @@ def evaluate_scene(
     for column in columns:
         json_path = cache / f"{column.key}.json"
         signature = _signature(column, base_settings)
-        if json_path.is_file():
-            data = json.loads(json_path.read_text(encoding="utf-8"))
-            if data.get("signature") == json.loads(json.dumps(signature)):
-                results[column.key] = ColumnResult(**data)
-                continue
+        cached = _read_cached(json_path)
+        if cached is not None and cached.get("signature") == json.loads(json.dumps(signature)):
+            results[column.key] = ColumnResult(**cached)
+            continue
         if column.motion_source not in motions:
             report(progress, f"{name}: motion ({column.motion_source})")
             motion, seconds, caught = cached_motion(
@@ -303,12 +315,12 @@ def evaluate_scene(
         result, image = run_column(scene, column, base_settings, motion, truth)
         cache.mkdir(parents=True, exist_ok=True)
         write_png(cache / f"{column.key}.png", np.clip(image, 0, 1), bit_depth=16)
-        json_path.write_text(json.dumps(asdict(result), indent=1), encoding="utf-8")
+        atomic_write_text(json_path, json.dumps(asdict(result), indent=1))
         results[column.key] = result
         report(progress, f"{name}: {column.key} PSNR {result.psnr:.2f} dB ({result.seconds:.0f} s)")
     timing = cache / "sceneflow_seconds.json"
     if not math.isnan(sceneflow_seconds):
-        timing.write_text(json.dumps(sceneflow_seconds), encoding="utf-8")
+        atomic_write_text(timing, json.dumps(sceneflow_seconds))
     elif timing.is_file():
         sceneflow_seconds = float(json.loads(timing.read_text(encoding="utf-8")))
     return SceneResult(
@@ -410,7 +422,6 @@ def run_paper_bench(
     progress : callable, optional
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
-    from ..io.outputs import atomic_write_text
     from ..settings import DeblurSettings
 
     start = time.perf_counter()

@@ -44,6 +44,7 @@ import numpy as np
 
 from ..geometry.camera import StereoCamera
 from ..geometry.rigid import se3_exp, so3_log
+from ..io.outputs import atomic_write_text
 from ..progress import ProgressCallback, report
 from .metrics import disparity_error, endpoint_error
 
@@ -255,8 +256,7 @@ def run_sceneflow_benchmark(scene_roots, *, frame: int = 1, out=None) -> list[Sc
     results = [evaluate_scene(root, frame=frame, out=out) for root in scene_roots]
     if out is not None:
         path = Path(out) / "sceneflow_bench.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps([asdict(r) for r in results], indent=2) + "\n")
+        atomic_write_text(path, json.dumps([asdict(r) for r in results], indent=2) + "\n")
     return results
 
 
@@ -388,7 +388,6 @@ def run_sceneflow_bench(
     progress : callable, optional
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
-    from ..io.outputs import atomic_write_text
     from ..synth.objects import OBJECT_SCENES
     from ..synth.planar import PLANAR_MOTIONS, write_planar_set
     from .paper_bench import render_missing
