@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from stereodeblur.deconv.trust import motion_trust, near_motion_boundaries
+from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import (
     DeblurSettings,
@@ -13,6 +14,7 @@ from stereodeblur.pipeline import (
     deblur_stereo_frame,
     frame_motion,
     invert_flow,
+    to_right_view,
 )
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
@@ -183,3 +185,18 @@ def test_progress_names_frame_and_view(scene):
     assert "frame 1 right: blur operator (homography)" in stages
     irls = [p for p in seen if p.stage == "frame 1 left: IRLS"]
     assert [(p.done, p.total) for p in irls] == [(1, 2), (2, 2)]
+
+
+def test_a_given_scene_flow_replaces_the_estimate(scene, monkeypatch):
+    settings = DeblurSettings(**FAST, kernels="displacement", boundary_weights="paper")
+    estimated = deblur_stereo_frame(scene, 1, settings=settings)
+    sceneflow = estimated.motion.estimate.sceneflow
+    reads, estimates, _ = _count(monkeypatch, scene)
+    given = deblur_stereo_frame(scene, 1, settings=settings, sceneflow=sceneflow)
+    assert estimates == [] and set(reads) == {("left", 1), ("right", 1)}
+    for view in ("left", "right"):
+        np.testing.assert_array_equal(given.frames[view].image, estimated.frames[view].image)
+    with pytest.raises(InputError, match="left view"):
+        deblur_stereo_frame(scene, 1, settings=settings, sceneflow=to_right_view(sceneflow))
+    with pytest.raises(InputError, match="motion_source='sceneflow'"):
+        deblur_stereo_frame(scene, 1, settings=TRUE, sceneflow=sceneflow)

@@ -22,6 +22,7 @@ from .window import VIEWS, FrameWindow, check_gt, check_views, read_window
 
 if TYPE_CHECKING:
     from ..io.protocol import StereoScene
+    from ..sceneflow.model import SceneFlow
 
 
 @dataclass(frozen=True)
@@ -164,12 +165,15 @@ def deblur_stereo_frame(
     *,
     views=VIEWS,
     settings: DeblurSettings | None = None,
+    sceneflow: SceneFlow | None = None,
     progress: ProgressCallback | None = None,
 ) -> StereoFrameResult:
     """Deblur frame ``index`` of every view in ``views``, reading each frame and computing
     the motion once.
 
-    Each view's image equals :func:`deblur_frame`'s. Reports progress as
+    Each view's image equals :func:`deblur_frame`'s. ``sceneflow``: the left view's scene
+    flow towards the frame's neighbour (e.g. saved by ``stereodeblur sceneflow``), used
+    instead of an estimate (``motion_source='sceneflow'``). Reports progress as
     ``"frame {index}: motion ..."`` and ``"frame {index} {view}: ..."``.
     """
     settings = settings or DeblurSettings()
@@ -177,12 +181,17 @@ def deblur_stereo_frame(
     timings = {}
     start = time.perf_counter()
     check_gt(scene, index, settings, views)
-    window = read_window(scene, index, views, settings)
+    window = read_window(scene, index, views, settings, estimate=sceneflow is None)
     timings["read"] = time.perf_counter() - start
     start = time.perf_counter()
     report(progress, f"frame {index}: motion ({settings.motion_source})")
     motion = stereo_motion(
-        scene, window, views, settings, progress=prefixed(progress, f"frame {index}: ")
+        scene,
+        window,
+        views,
+        settings,
+        sceneflow=sceneflow,
+        progress=prefixed(progress, f"frame {index}: "),
     )
     timings["motion"] = time.perf_counter() - start
     frames = {}

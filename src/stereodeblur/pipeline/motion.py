@@ -218,17 +218,27 @@ def stereo_motion(
     views,
     settings: DeblurSettings,
     *,
+    sceneflow: SceneFlow | None = None,
     progress: ProgressCallback | None = None,
 ) -> StereoMotion:
     """The motion of every view in ``views`` from ``settings.motion_source``, computed once.
 
     One scene-flow estimate (left view, transferred to the right by :func:`to_right_view`)
     and one dense flow per view and frame pair; the estimate's initial optical flow is the
-    left view's dense flow to the neighbour.
+    left view's dense flow to the neighbour. ``sceneflow``: the left view's scene flow
+    towards the neighbour, given instead of estimated (``motion_source='sceneflow'``).
     """
     index, neighbour = window.index, window.neighbour
     estimate = None
-    if settings.motion_source == "gt":
+    if sceneflow is not None:
+        _check_sceneflow(sceneflow, window, settings)
+        motions = {}
+        for view in views:
+            motion = sceneflow_motion(sceneflow, index, neighbour, view)
+            if uses_boundary_flow(settings):
+                motion = replace(motion, boundary_flow=view_dense_flow(window, view))
+            motions[view] = motion
+    elif settings.motion_source == "gt":
         motions = gt_motions(scene, window, views, settings)
     elif settings.motion_source == "initial-flow":
         motions = {}
@@ -245,6 +255,18 @@ def stereo_motion(
                 motion = replace(motion, boundary_flow=view_dense_flow(window, view, forward=known))
             motions[view] = motion
     return StereoMotion(index, MappingProxyType(motions), estimate)
+
+
+def _check_sceneflow(sceneflow: SceneFlow, window: FrameWindow, settings) -> None:
+    if settings.motion_source != "sceneflow":
+        raise InputError(
+            f"a given scene flow needs motion_source='sceneflow', got {settings.motion_source!r}"
+        )
+    if sceneflow.view != "left" or sceneflow.shape != window.shape:
+        raise InputError(
+            f"the scene flow given is of the {sceneflow.view} view, size {sceneflow.shape}; "
+            f"expected the left view, size {window.shape}"
+        )
 
 
 # --------------------------------------------------------------------------- one view

@@ -110,15 +110,18 @@ class FrameWindow:
         return next(iter(self.images.values())).shape[:2]
 
 
-def frames_needed(index: int, num_frames: int, views, settings: DeblurSettings, *, motion=True):
+def frames_needed(
+    index: int, num_frames: int, views, settings: DeblurSettings, *, motion=True, estimate=True
+):
     """The ``(view, frame)`` pairs deblurring frame ``index`` of ``views`` reads.
 
-    ``motion=False``: the motion is given, only the views' own frames are needed.
+    ``motion=False``: the motion is given, only the views' own frames are needed;
+    ``estimate=False``: the scene flow is given, the views' dense flows are still computed.
     """
     neighbour, other = neighbour_of(index, num_frames), other_side(index, num_frames)
     needed = [(view, index) for view in views]
     source = settings.motion_source if motion else None
-    if source == "sceneflow":
+    if source == "sceneflow" and estimate:
         needed += [(v, i) for i in (index, neighbour) for v in VIEWS]
     elif source == "gt":
         needed.append(("left", index))  # the superpixels are cut on the left frame
@@ -135,18 +138,22 @@ def read_window(
     settings: DeblurSettings,
     *,
     motion: bool = True,
+    estimate: bool = True,
     known=None,
 ) -> FrameWindow:
     """Read the frames deblurring frame ``index`` of ``views`` needs, each once.
 
-    ``motion=False``: the motion is given (its frames are not read). ``known``: frames
-    already in memory, ``{(view, frame): image}``, taken instead of reading them.
+    ``motion``, ``estimate``: as for :func:`frames_needed`. ``known``: frames already in
+    memory, ``{(view, frame): image}``, taken instead of reading them.
     """
     check_index(scene, index)
     views = check_views(views)
     known = known or {}
     images = {}
-    for view, frame in frames_needed(index, scene.num_frames, views, settings, motion=motion):
+    needed = frames_needed(
+        index, scene.num_frames, views, settings, motion=motion, estimate=estimate
+    )
+    for view, frame in needed:
         image = known.get((view, frame))
         if image is None:
             image = scene.read_frame(view, frame)
