@@ -55,10 +55,11 @@ def _splat_groups(groups: np.ndarray, px: np.ndarray, py: np.ndarray) -> np.ndar
     """Group map of another image: each reference pixel's group at its rounded position
     there, holes filled from the nearest assigned pixel."""
     height, width = groups.shape
-    ix = np.rint(px).astype(np.int64)
-    iy = np.rint(py).astype(np.int64)
-    ok = np.isfinite(px) & np.isfinite(py) & (ix >= 0) & (iy >= 0) & (ix < width) & (iy < height)
-    ok &= (np.abs(px) < 1e9) & (np.abs(py) < 1e9)
+    finite = np.isfinite(px) & np.isfinite(py)
+    finite &= (np.abs(np.where(finite, px, 0)) < 1e9) & (np.abs(np.where(finite, py, 0)) < 1e9)
+    ix = np.rint(np.where(finite, px, -1.0)).astype(np.int64)
+    iy = np.rint(np.where(finite, py, -1.0)).astype(np.int64)
+    ok = finite & (ix >= 0) & (iy >= 0) & (ix < width) & (iy < height)
     out = np.full((height, width), -1, dtype=np.int64)
     out[iy[ok], ix[ok]] = groups[ok]
     if (out < 0).all():
