@@ -162,3 +162,22 @@ def test_saved_sceneflow_needs_one_frame_and_the_sceneflow_source(tiny_scene, tm
     if options:
         argv += ["--frames", "1"]
     refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=["--sceneflow", "--frames"])
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["synth", "planar", "{out}"],
+        ["synth", "objects", "{out}"],
+        ["bench", "planar", "--work", "{out}"],
+        ["bench", "sceneflow", "--work", "{out}", "--no-motorcycle"],
+        ["bench", "paper", "--work", "{out}"],
+    ],
+    ids=lambda c: " ".join(c[:2]),
+)
+def test_unknown_scene_names_are_refused_before_rendering(tmp_path, capsys, command):
+    out = tmp_path / "out"
+    argv = [str(out) if a == "{out}" else a for a in command]
+    refused(
+        capsys, [*argv, "--scenes", "nosuch"], outputs=[out], fragments=["'nosuch'", "--scenes"]
+    )

@@ -124,6 +124,9 @@ def _options() -> tuple[SettingOption, ...]:
     )
 
 
+# Library parameters of the synthetic scenes and benchmarks that are options of their commands.
+OTHER_OPTIONS = {"scenes": "--scenes"}
+
 BOUNDARY_HELP = (
     "motion boundaries: adaptive (default: blur from the dense optical flow near motion "
     "boundaries; without one, each instant shows the surface covering the pixel then, pixels "
@@ -193,8 +196,8 @@ def option_for(parameter: str | None) -> str | None:
 
     if parameter == "boundary_weights":
         return "--boundary-weights"
-    flags = {o.field: o.flag for o in _options()}
-    return flags.get(parameter) or SOURCE_OPTIONS.get(parameter)
+    flags = {o.field: o.flag for o in _options()} | SOURCE_OPTIONS | OTHER_OPTIONS
+    return flags.get(parameter)
 
 
 def arguments_for(settings) -> list[str]:

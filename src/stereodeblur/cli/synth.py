@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..errors import InputError
 from .base import Parser, add_quiet, names, size
 from .printer import progress_printer
 from .sources import add_source_options, input_paths, open_source, source_spec
@@ -73,8 +74,14 @@ def _check_set_output(output: str, command: str) -> None:
 
 
 def run_planar(args: argparse.Namespace) -> int:
-    from ..synth.planar import write_planar_set
+    from ..synth.planar import PLANAR_MOTIONS, write_planar_set
 
+    unknown = [n for n in args.scenes or () if n not in PLANAR_MOTIONS]
+    if unknown:
+        raise InputError(
+            f"--scenes: unknown planar scene {unknown[0]!r}, expected one of "
+            f"{', '.join(PLANAR_MOTIONS)}"
+        )
     _check_set_output(args.output, "synth planar")
     roots = write_planar_set(
         args.output, size=args.size, names=args.scenes, progress=progress_printer(args.quiet)
@@ -84,8 +91,14 @@ def run_planar(args: argparse.Namespace) -> int:
 
 
 def run_objects(args: argparse.Namespace) -> int:
-    from ..synth.objects import write_object_set
+    from ..synth.objects import OBJECT_SCENES, write_object_set
 
+    unknown = [n for n in args.scenes or () if n.removesuffix("_noisy") not in OBJECT_SCENES]
+    if unknown:
+        raise InputError(
+            f"--scenes: unknown object scene {unknown[0]!r}, expected one of "
+            f"{', '.join(OBJECT_SCENES)} (each also as NAME_noisy)"
+        )
     _check_set_output(args.output, "synth objects")
     roots = write_object_set(
         args.output,

@@ -78,7 +78,8 @@ def scene_kind(name: str) -> str:
         return "planar"
     raise InputError(
         f"unknown scene {name!r}: expected an object scene ({', '.join(OBJECT_SCENES)}) or a "
-        f"planar one ({', '.join(PLANAR_MOTIONS)}), optionally with the suffix _noisy"
+        f"planar one ({', '.join(PLANAR_MOTIONS)}), optionally with the suffix _noisy",
+        parameter="scenes",
     )
 
 

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from ..errors import InputError
 from ..progress import ProgressCallback, report
 
 FRAME = 1
@@ -162,6 +163,12 @@ def run_planar_bench(
 
     work = Path(work)
     names = list(scenes) if scenes else list(PLANAR_MOTIONS)
+    unknown = [n for n in names if n not in PLANAR_MOTIONS]
+    if unknown:
+        raise InputError(
+            f"unknown planar scene {unknown[0]!r}: expected one of {', '.join(PLANAR_MOTIONS)}",
+            parameter="scenes",
+        )
     rows = []
     for width, height in sizes:
         size = f"{width}x{height}"

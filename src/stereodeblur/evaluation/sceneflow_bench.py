@@ -390,10 +390,12 @@ def run_sceneflow_bench(
     """
     from ..synth.objects import OBJECT_SCENES
     from ..synth.planar import PLANAR_MOTIONS, write_planar_set
-    from .paper_bench import render_missing
+    from .paper_bench import render_missing, scene_kind
 
     work = Path(work)
     names = list(scenes) if scenes else list(PLANAR_MOTIONS) + list(OBJECT_SCENES)
+    for name in names:
+        scene_kind(name)  # an InputError for an unknown name, before anything is rendered
     results = []
     for width, height in sizes:
         base = work / f"{width}x{height}"
