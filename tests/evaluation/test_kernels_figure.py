@@ -68,3 +68,10 @@ def test_cli_writes_the_picture(tmp_path, capsys):
 def test_cli_rejects_a_bad_depth(tmp_path, capsys):
     assert main(["kernels", "-o", str(tmp_path / "k.png"), "--depth", "-1"]) == 2
     assert "depth" in capsys.readouterr().err
+
+
+def test_cli_rejects_a_yaw_beyond_a_quarter_turn(tmp_path, capsys):
+    assert main(["kernels", "-o", str(tmp_path / "k.png"), "--yaw", "1e9"]) == 2
+    err = capsys.readouterr().err
+    assert "--yaw" in err and "1.571" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "k.png").exists()

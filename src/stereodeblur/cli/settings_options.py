@@ -125,7 +125,7 @@ def _options() -> tuple[SettingOption, ...]:
 
 
 # Library parameters of the synthetic scenes and benchmarks that are options of their commands.
-OTHER_OPTIONS = {"scenes": "--scenes"}
+OTHER_OPTIONS = {"scenes": "--scenes", "yaw": "--yaw", "depth": "--depth"}
 
 BOUNDARY_HELP = (
     "motion boundaries: adaptive (default: blur from the dense optical flow near motion "

@@ -23,6 +23,7 @@ maxima).
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,8 @@ from ..settings import NUM_SAMPLES
 SIZE = (320, 240)
 YAW = 0.3
 DEPTH = 3.0
+# Beyond a quarter turn per frame interval the plane turns its back to the camera.
+MAX_YAW = math.pi / 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,9 +90,13 @@ def yaw_sceneflow(size: tuple[int, int], *, yaw: float, depth: float):
     from ..synth.planar import planar_camera
 
     if not (np.isfinite(depth) and depth > 0):
-        raise InputError(f"depth must be a positive number, got {depth!r}")
-    if not np.isfinite(yaw):
-        raise InputError(f"yaw must be a finite number, got {yaw!r}")
+        raise InputError(f"depth must be a positive number, got {depth!r}", parameter="depth")
+    if not (np.isfinite(yaw) and abs(yaw) <= MAX_YAW):
+        raise InputError(
+            f"yaw must be a number in [-{MAX_YAW:.4g}, {MAX_YAW:.4g}] (a quarter turn per frame "
+            f"interval at most), got {yaw!r}",
+            parameter="yaw",
+        )
     width, height = size
     camera = planar_camera(size)
     center = np.array([0.0, 0.0, depth])
