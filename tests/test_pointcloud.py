@@ -128,3 +128,23 @@ def test_colours_sets_and_encoding():
         render_view(PointCloud(cloud.points, cloud.colors, K=K, size=(W, H)), colors="both")
     with pytest.raises(InputError, match="intrinsics"):
         render_view(PointCloud(cloud.points, cloud.colors))
+
+
+@pytest.mark.parametrize(
+    "comment, fragment",
+    [
+        ("comment K 1 0 0 0 1 0 0 0 x", "could not convert"),
+        ("comment K nan 0 0 0 1 0 0 0 1", "finite"),
+        ("comment K -5 0 0 0 5 0 0 0 1", "focal lengths > 0"),
+        ("comment size 100000 100000", "at most"),
+        ("comment size ten 3", "invalid literal"),
+    ],
+)
+def test_bad_camera_comments_name_the_file(tmp_path, comment, fragment):
+    path = tmp_path / "bad.ply"
+    header = "ply\nformat ascii 1.0\n" + comment + "\nelement vertex 1\n"
+    header += "property float x\nproperty float y\nproperty float z\nend_header\n"
+    path.write_text(header + "0 0 1\n")
+    with pytest.raises(InputError, match=fragment) as info:
+        read_ply(path)
+    assert "bad.ply" in str(info.value)

@@ -37,6 +37,8 @@ from .io.formats import linear_to_srgb
 from .io.outputs import atomic_write
 
 COLOR_SETS = ("deblurred", "blurred", "both")
+# Largest rendered view: 2**26 pixels (8192 x 8192), 800 MB as float RGB.
+MAX_PIXELS = 2**26
 _PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
     "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
@@ -83,12 +85,30 @@ class PointCloud:
                     f"{name} must be uint8 of shape {points.shape}, got {value.dtype} {value.shape}"
                 )
         if self.K is not None:
-            object.__setattr__(self, "K", np.asarray(self.K, dtype=np.float64).reshape(3, 3))
+            object.__setattr__(self, "K", _check_intrinsics(self.K))
         if self.size is not None:
-            object.__setattr__(self, "size", (int(self.size[0]), int(self.size[1])))
+            object.__setattr__(self, "size", _check_size(self.size))
 
     def __len__(self) -> int:
         return self.points.shape[0]
+
+
+def _check_intrinsics(K) -> np.ndarray:
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+        raise InputError(f"K must be a finite 3 x 3 matrix, got {K.tolist()!r}")
+    if not (K[0, 0] > 0 and K[1, 1] > 0) or not np.array_equal(K[2], [0.0, 0.0, 1.0]):
+        raise InputError(f"K must have focal lengths > 0 and last row 0 0 1, got {K.tolist()!r}")
+    return K
+
+
+def _check_size(size) -> tuple[int, int]:
+    width, height = (int(v) for v in size)
+    if width < 1 or height < 1 or width * height > MAX_PIXELS:
+        raise InputError(
+            f"size must be at least 1 x 1 and at most {MAX_PIXELS} pixels, got {width} x {height}"
+        )
+    return width, height
 
 
 def _to_u8(image: np.ndarray, color: str) -> np.ndarray:
@@ -243,13 +263,16 @@ def read_ply(path: str | os.PathLike) -> PointCloud:
     deblurred = colors("deblurred")
     if deblurred is None:
         deblurred = np.full(points.shape, 255, np.uint8)
-    K, size = None, None
-    for words in comments:
-        if words[:1] == ["K"] and len(words) == 10:
-            K = np.array([float(v) for v in words[1:]]).reshape(3, 3)
-        elif words[:1] == ["size"] and len(words) == 3:
-            size = (int(words[1]), int(words[2]))
-    return PointCloud(points, deblurred, colors("blurred"), K=K, size=size)
+    try:
+        K, size = None, None
+        for words in comments:
+            if words[:1] == ["K"] and len(words) == 10:
+                K = np.array([float(v) for v in words[1:]]).reshape(3, 3)
+            elif words[:1] == ["size"] and len(words) == 3:
+                size = (int(words[1]), int(words[2]))
+        return PointCloud(points, deblurred, colors("blurred"), K=K, size=size)
+    except ValueError as err:  # InputError too: name the file
+        raise InputError(f"{path}: {err}") from None
 
 
 # --------------------------------------------------------------------------- rendering
@@ -304,13 +327,11 @@ def render_view(
         raise InputError(f"colors must be one of {', '.join(COLOR_SETS)}, got {colors!r}")
     if colors != "deblurred" and cloud.blurred_colors is None:
         raise InputError("the point cloud has no blurred colours (blurred_red, ...)")
-    K = cloud.K if K is None else np.asarray(K, dtype=np.float64)
-    size = cloud.size if size is None else size
+    K = cloud.K if K is None else _check_intrinsics(K)
+    size = cloud.size if size is None else _check_size(size)
     if K is None or size is None:
         raise InputError("the point cloud states no intrinsics or image size: give K and size")
-    width, height = (int(v) for v in size)
-    if width < 1 or height < 1:
-        raise InputError(f"size must be positive, got {size}")
+    width, height = size
     R = so3_exp(np.asarray(rotation, dtype=np.float64).reshape(3))
     camera = (cloud.points.astype(np.float64) - np.asarray(translation, dtype=np.float64)) @ R
     z = camera[:, 2]
