@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from stereodeblur.errors import InputError
 from stereodeblur.geometry.camera import StereoCamera
@@ -148,3 +150,101 @@ def test_bad_camera_comments_name_the_file(tmp_path, comment, fragment):
     with pytest.raises(InputError, match=fragment) as info:
         read_ply(path)
     assert "bad.ply" in str(info.value)
+
+
+# --- fuzzing the PLY reader: a PointCloud or an InputError, never anything else
+
+FUZZ = settings(
+    max_examples=200,
+    deadline=None,
+    derandomize=True,  # the same examples on every run
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+TYPES = ["float", "double", "uchar", "int", "char", "short", "list uchar int", "bogus"]
+
+
+def _read(path, data: bytes):
+    path.write_bytes(data)
+    try:
+        cloud = read_ply(path)
+    except InputError:
+        return None
+    assert isinstance(cloud, PointCloud)
+    return cloud
+
+
+@FUZZ
+@given(data=st.binary(max_size=400))
+def test_arbitrary_bytes(tmp_path, data):
+    _read(tmp_path / "a.ply", data)
+    _read(tmp_path / "b.ply", b"ply\n" + data)
+
+
+@st.composite
+def ply_files(draw):
+    fmt = draw(st.sampled_from(["ascii", "binary_little_endian", "binary_big_endian", "x"]))
+    count = draw(st.sampled_from(["0", "1", "3", "-1", "99999999999999", "x"]))
+    prop = st.tuples(st.sampled_from(TYPES), st.sampled_from(["x", "y", "z", "red", "q"]))
+    # Mostly x, y and z in some order (so the reader gets past its first checks), plus extras.
+    xyz = [(draw(st.sampled_from(TYPES[:3])), axis) for axis in draw(st.permutations("xyz"))]
+    if draw(st.booleans()):
+        props = xyz + draw(st.lists(prop, max_size=2))
+    else:
+        props = draw(st.lists(prop, max_size=6))
+    comments = draw(
+        st.lists(
+            st.sampled_from(
+                [
+                    "comment K 50 0 20 0 50 16 0 0 1",
+                    "comment K 0 0 0 0 0 0 0 0 0",
+                    "comment K 1e400 0 0 0 1 0 0 0 1",
+                    "comment size 40 32",
+                    "comment size -4 99999999999",
+                    "comment size 1e3 2",
+                ]
+            ),
+            max_size=3,
+        )
+    )
+    lines = ["ply", f"format {fmt} 1.0", *comments, f"element vertex {count}"]
+    lines += [f"property {kind} {name}" for kind, name in props]
+    header = ("\n".join(lines) + "\nend_header\n").encode()
+    body = draw(
+        st.one_of(
+            st.binary(max_size=64),
+            st.lists(
+                st.sampled_from(["0 0 1", "1 2 3 4 5 6", "nan 0 1", "1e999 0 0", "a b c", ""]),
+                max_size=4,
+            ).map(lambda rows: "\n".join(rows).encode()),
+        )
+    )
+    return header + body
+
+
+@FUZZ
+@given(data=ply_files())
+def test_ply_shaped_files(tmp_path, data):
+    _read(tmp_path / "c.ply", data)
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_a_property_declared_twice(tmp_path, fmt):
+    header = f"ply\nformat {fmt} 1.0\nelement vertex 1\nproperty float x\nproperty float x\n"
+    header += "property float y\nproperty float z\nend_header\n"
+    body = b"0 1 2 3\n" if fmt == "ascii" else bytes(16)
+    with pytest.raises(InputError, match="declared twice"):
+        read_ply(_write(tmp_path / "dup.ply", header.encode() + body))
+
+
+def _write(path, data: bytes):
+    path.write_bytes(data)
+    return path
+
+
+def test_the_fuzzer_reaches_valid_clouds(tmp_path):
+    header = "ply\nformat ascii 1.0\ncomment size 40 32\nelement vertex 1\n"
+    header += "property float x\nproperty float y\nproperty float z\nend_header\n"
+    cloud = _read(tmp_path / "ok.ply", (header + "0 0 1\n").encode())
+    assert cloud is not None and cloud.size == (40, 32) and len(cloud) == 1
+    with pytest.raises(InputError):
+        read_ply(tmp_path / "ok.ply").__class__(cloud.points, cloud.colors, size=(0, 1))

@@ -217,6 +217,9 @@ def _parse_header(data: bytes, path: Path):
     name, count, props = elements[0]
     if any(kind is None for _, kind in props):
         raise InputError(f"{path}: list properties on vertices are not supported")
+    names = [n for n, _ in props]
+    if len(set(names)) != len(names):
+        raise InputError(f"{path}: a vertex property is declared twice ({', '.join(names)})")
     return fmt, count, props, comments, newline + 1
 
 
