@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from stereodeblur.cli import build_parser
 from stereodeblur.cli.settings_options import arguments_for, settings_from_arguments
@@ -87,3 +89,41 @@ def test_an_input_error_naming_a_parameter_points_at_the_option(tmp_path, capsys
     assert main(["deblur", str(left), str(right), "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "(option --calib)" in err[0], err
+
+
+FUZZ = settings(max_examples=150, deadline=None, derandomize=True)
+
+
+@FUZZ
+@given(
+    kernels=st.sampled_from(["homography", "displacement"]),
+    motion_source=st.sampled_from(["gt", "sceneflow", "initial-flow"]),
+    num_samples=st.integers(2, 1000),
+    alpha=st.one_of(st.just("auto"), st.floats(1e-12, 1.0)),
+    num_irls=st.integers(1, 1000),
+    num_cg=st.integers(1, 1000),
+    num_segments=st.one_of(st.none(), st.integers(1, 100_000)),
+    boundary_weights=st.sampled_from(["adaptive", "paper", "none"]),
+    boundary_mask=st.sampled_from([None, "gt"]),
+)
+def test_any_settings_round_trip_through_the_options(**fields):
+    if fields["motion_source"] == "initial-flow":
+        fields["kernels"] = "displacement"
+    settings_value = DeblurSettings(**fields)
+    assert _parse(*arguments_for(settings_value)) == settings_value
+
+
+@FUZZ
+@given(text=st.text(max_size=30))
+def test_option_types_accept_or_refuse_in_one_line(text):
+    import argparse
+
+    from stereodeblur.cli.base import integer, names, positive_number, size, sizes
+    from stereodeblur.cli.render_view import vector3
+    from stereodeblur.cli.settings_options import alpha
+
+    for parse in (size, sizes, names, integer(2, 1000), positive_number, alpha, vector3):
+        try:
+            parse(text)
+        except argparse.ArgumentTypeError as err:
+            assert "\n" not in str(err)
