@@ -19,9 +19,8 @@ types, so every variant of the paper's tables is a combination of ``motion_sourc
 - ``motion_source='sceneflow'`` (default): piecewise-rigid scene flow estimated from the
   blurred stereo frames (left view; the right view's by :func:`to_right_view`); 2D
   displacements are its projection. The views' dense optical flow comes along
-  (``FrameMotion.boundary_flow``; the left view's to the neighbour is the estimate's
-  initial flow): near motion boundaries the adaptive boundary handling takes the blur from
-  it (:func:`boundary_motion`).
+  (``FrameMotion.boundary_flow``): near motion boundaries the adaptive boundary handling
+  takes the blur from it (:func:`boundary_motion`).
 - ``motion_source='gt'``: planes and motions fitted per superpixel (cut where the gt
   jumps) to the scene's gt/disparity (frame i and its neighbour) and gt/flow; 2D
   displacements taken directly from gt/flow (:func:`gt_needs` lists the files).

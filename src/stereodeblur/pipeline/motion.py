@@ -177,17 +177,17 @@ def gt_motions(scene: StereoScene, window: FrameWindow, views, settings) -> dict
     return motions
 
 
-def view_dense_flow(window: FrameWindow, view: str, *, forward=None) -> tuple:
+def view_dense_flow(window: FrameWindow, view: str) -> tuple:
     """Dense optical flow (DIS) of ``view``: ``(to the neighbour, to the other side or None)``.
 
-    ``forward``: the flow to the neighbour, if already computed (the scene-flow estimate's
-    initial flow of the left view).
+    Computed on the frames' own grey levels. (The scene-flow estimate's initial flow of the
+    left view is DIS on grey levels scaled by a gain common to the four frames: a different
+    computation, so it is not reused here.)
     """
     from ..sceneflow import initial
 
     blurred = window.blurred(view)
-    if forward is None:
-        forward = initial.initial_optical_flow(blurred, window.frame(view, window.neighbour))
+    forward = initial.initial_optical_flow(blurred, window.frame(view, window.neighbour))
     backward = None
     if window.other is not None:
         backward = initial.initial_optical_flow(blurred, window.frame(view, window.other))
@@ -224,8 +224,7 @@ def stereo_motion(
     """The motion of every view in ``views`` from ``settings.motion_source``, computed once.
 
     One scene-flow estimate (left view, transferred to the right by :func:`to_right_view`)
-    and one dense flow per view and frame pair; the estimate's initial optical flow is the
-    left view's dense flow to the neighbour. ``sceneflow``: the left view's scene flow
+    and one dense flow per view and frame pair. ``sceneflow``: the left view's scene flow
     towards the neighbour, given instead of estimated (``motion_source='sceneflow'``).
     """
     index, neighbour = window.index, window.neighbour
@@ -251,8 +250,7 @@ def stereo_motion(
         for view in views:
             motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
             if uses_boundary_flow(settings):
-                known = estimate.initial_flow if view == "left" else None
-                motion = replace(motion, boundary_flow=view_dense_flow(window, view, forward=known))
+                motion = replace(motion, boundary_flow=view_dense_flow(window, view))
             motions[view] = motion
     return StereoMotion(index, MappingProxyType(motions), estimate)
 
