@@ -39,6 +39,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.outputs import atomic_write, atomic_write_text
 from ..progress import ProgressCallback, report
+from ..settings import DeblurSettings
 from .paper_columns import (
     ALPHA_SWEEP,
     COLUMNS,
@@ -215,7 +216,7 @@ def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) 
     }
 
 
-def run_column(scene, column: Column, base_settings, motion, truth: dict) -> tuple:
+def run_column(scene, column: Column, base_settings: DeblurSettings, motion, truth: dict) -> tuple:
     """Deblur frame 1 with ``column``; returns ``(ColumnResult, image)``."""
     from ..pipeline import deblur_frame
     from .metrics import disparity_error, endpoint_error, psnr, ssim
@@ -272,7 +273,7 @@ def evaluate_scene(
     root: Path,
     cache: Path,
     columns,
-    base_settings,
+    base_settings: DeblurSettings,
     *,
     progress: ProgressCallback | None = None,
 ) -> SceneResult:
@@ -396,7 +397,7 @@ def run_paper_bench(
     *,
     size: tuple[int, int] = SIZE,
     scenes: Sequence[str] | None = None,
-    settings=None,
+    settings: DeblurSettings | None = None,
     alpha_sweep: bool = False,
     masked: bool = True,
     render_samples: int = RENDER_SAMPLES,
@@ -423,8 +424,6 @@ def run_paper_bench(
     progress : callable, optional
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
-    from ..settings import DeblurSettings
-
     start = time.perf_counter()
     names = list(scenes) if scenes else default_scenes()
     for name in names:

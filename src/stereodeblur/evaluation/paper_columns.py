@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-from ..settings import PAPER_ALPHA
+from ..settings import PAPER_ALPHA, DeblurSettings
 
 FRAME = 1
 ALPHA_SWEEP = (3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -46,7 +46,7 @@ class Column:
     alpha: float | str = PAPER_ALPHA
     boundary_mask: str | None = None
 
-    def settings(self, base):
+    def settings(self, base: DeblurSettings) -> DeblurSettings:
         """``base`` (a DeblurSettings) with this column's switches."""
         return replace(
             base,
