@@ -101,10 +101,14 @@ def deblur_view(
     settings: DeblurSettings,
     *,
     weights: np.ndarray | None = None,
+    timings: dict | None = None,
     progress: ProgressCallback | None = None,
 ) -> FrameResult:
-    """Deblur one view of ``window`` with its ``motion``: operator, data terms, solve."""
-    view, timings = motion.view, {}
+    """Deblur one view of ``window`` with its ``motion``: operator, data terms, solve.
+
+    ``timings``: seconds of the stages before (the motion's), kept in the result's.
+    """
+    view, timings = motion.view, dict(timings or {})
     check_motion(motion, window, view)
     start = time.perf_counter()
     report(progress, f"blur operator ({settings.kernels})")
@@ -153,10 +157,10 @@ def deblur_frame(
     if motion is None:
         report(progress, f"motion ({settings.motion_source})")
         motion = stereo_motion(scene, window, (view,), settings, progress=progress).views[view]
-    seconds = time.perf_counter() - start
-    result = deblur_view(scene, window, motion, settings, weights=weights, progress=progress)
-    result.timings["motion"] = seconds
-    return result
+    timings = {"motion": time.perf_counter() - start}
+    return deblur_view(
+        scene, window, motion, settings, weights=weights, timings=timings, progress=progress
+    )
 
 
 def deblur_stereo_frame(
@@ -194,6 +198,7 @@ def deblur_stereo_frame(
         progress=prefixed(progress, f"frame {index}: "),
     )
     timings["motion"] = time.perf_counter() - start
+    share = {"motion": sum(timings.values()) / len(views)}
     frames = {}
     for view in views:
         frames[view] = deblur_view(
@@ -201,7 +206,7 @@ def deblur_stereo_frame(
             window,
             motion.views[view],
             settings,
+            timings=share,
             progress=prefixed(progress, f"frame {index} {view}: "),
         )
-        frames[view].timings["motion"] = sum(timings.values()) / len(views)
     return StereoFrameResult(index, frames, motion, timings)
