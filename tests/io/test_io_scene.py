@@ -10,6 +10,7 @@ from stereodeblur.geometry import Exposure, StereoCamera
 from stereodeblur.io import (
     CameraInfo,
     SceneWriter,
+    check_readable,
     linear_to_srgb,
     open_scene,
     read_camera,
@@ -302,22 +303,30 @@ def test_badly_named_frame(tmp_path):
 
 def test_frames_of_different_sizes(tmp_path):
     _make_scene(tmp_path / "s", num_frames=3)
-    write_png(tmp_path / "s" / "right" / "000001.png", np.zeros((SHAPE[0], SHAPE[1] - 1, 3)))
-    text = _raises(InputError, "right/000001.png is 63x48 16-bit RGB", open_scene, tmp_path / "s")
+    # The first frames of both views are checked on opening ...
+    write_png(tmp_path / "s" / "right" / "000000.png", np.zeros((SHAPE[0], SHAPE[1] - 1, 3)))
+    text = _raises(InputError, "right/000000.png is 63x48 16-bit RGB", open_scene, tmp_path / "s")
     assert "expected 64x48 16-bit RGB" in text
-    write_png(tmp_path / "s" / "right" / "000001.png", np.zeros((*SHAPE, 3)), bit_depth=8)
-    _raises(InputError, "right/000001.png is 64x48 8-bit RGB", open_scene, tmp_path / "s")
-    write_png(tmp_path / "s" / "right" / "000001.png", np.zeros(SHAPE))
-    _raises(InputError, "right/000001.png is 64x48 16-bit grey", open_scene, tmp_path / "s")
+    write_png(tmp_path / "s" / "right" / "000000.png", np.zeros((*SHAPE, 3)), bit_depth=8)
+    _raises(InputError, "right/000000.png is 64x48 8-bit RGB", open_scene, tmp_path / "s")
+    write_png(tmp_path / "s" / "right" / "000000.png", np.zeros((*SHAPE, 3)))
+    # ... the others by check_readable (before a run) and when they are read.
+    path = tmp_path / "s" / "right" / "000001.png"
+    write_png(path, np.zeros(SHAPE))
+    scene = open_scene(tmp_path / "s")
+    _raises(InputError, "right/000001.png is 64x48 grey, expected 64x48 RGB", check_readable, scene)
+    check_readable(scene, ["left"])
+    _raises(InputError, "right/000001.png has shape", scene.read_frame, "right", 1)
 
 
 def test_unreadable_png(tmp_path):
     _make_scene(tmp_path / "s", num_frames=2)
-    path = tmp_path / "s" / "left" / "000001.png"
+    path = tmp_path / "s" / "left" / "000000.png"
+    good = path.read_bytes()
     path.write_bytes(np.random.default_rng(9).bytes(500))
-    _raises(InputError, "not a PNG file: .*left/000001.png", open_scene, tmp_path / "s")
-    # A valid header with corrupt data passes the cheap check and fails on reading.
-    good = (tmp_path / "s" / "left" / "000000.png").read_bytes()
+    _raises(InputError, "not a PNG file: .*left/000000.png", open_scene, tmp_path / "s")
+    # A valid header with truncated data: found by check_readable, or on reading.
     path.write_bytes(good[: len(good) // 2])
     scene = open_scene(tmp_path / "s")
-    _raises(InputError, "truncated PNG file .*left/000001.png", scene.read_frame, "left", 1)
+    _raises(InputError, "truncated PNG file .*left/000000.png", check_readable, scene)
+    _raises(InputError, "truncated PNG file .*left/000000.png", scene.read_frame, "left", 0)

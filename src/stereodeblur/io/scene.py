@@ -113,9 +113,14 @@ def _list_frames(folder: Path) -> list[int]:
 
 
 class Scene:
-    """A stereo video scene on disk, validated on opening (see :func:`open_scene`).
+    """A stereo video scene on disk (see :func:`open_scene`).
 
-    Satisfies :class:`~stereodeblur.io.protocol.StereoScene`.
+    Satisfies :class:`~stereodeblur.io.protocol.StereoScene`. Opening checks the
+    layout: ``camera.json``, both frame folders numbered alike, and the first frame
+    of each view (size, type, at least ``MIN_FRAME_SIZE``). Every other frame file
+    is checked when a run starts (:func:`~stereodeblur.io.readable.check_readable`,
+    for the frames and views it reads) or when it is read, with an
+    :class:`~stereodeblur.errors.InputError` naming it.
 
     Attributes
     ----------
@@ -177,15 +182,13 @@ class Scene:
         self.num_frames = left
         first = read_png_header(self.frame_path("left", 0))
         check_frame_size(first.width, first.height, self.frame_path("left", 0))
-        for view in VIEWS:
-            for index in range(self.num_frames):
-                path = self.frame_path(view, index)
-                header = read_png_header(path)
-                if header != first:
-                    raise InputError(
-                        f"{path} is {_describe(header)}, expected {_describe(first)} "
-                        f"like {self.frame_path('left', 0)}"
-                    )
+        path = self.frame_path("right", 0)
+        header = read_png_header(path)
+        if header != first:
+            raise InputError(
+                f"{path} is {_describe(header)}, expected {_describe(first)} "
+                f"like {self.frame_path('left', 0)}"
+            )
         check_intrinsics(self.info.camera.K, (first.width, first.height), root / "camera.json")
         self._format = first
         self.shape = (first.height, first.width)
