@@ -55,3 +55,9 @@ def test_huge_range_is_checked_before_it_is_expanded():
 def test_bad_clip_length(num_frames):
     with pytest.raises(InputError, match="at least one frame"):
         parse_frames("0", num_frames)
+
+
+def test_long_selection_of_several_pieces_is_refused_before_it_is_expanded():
+    assert parse_frames("0:3,5:8", 10**15) == (0, 1, 2, 5, 6, 7)
+    with pytest.raises(InputError, match="at most 10000000"):
+        parse_frames("0:3,5:", 10**15)

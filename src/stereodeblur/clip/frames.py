@@ -12,6 +12,8 @@ from ..errors import InputError
 
 # Longest selection text accepted: far more than any hand-written list, small enough to parse.
 MAX_TEXT = 10_000
+# Most frames a selection that is not one range may list (it is expanded into a tuple).
+MAX_LISTED = 10_000_000
 _NUMBER = re.compile(r"[+-]?[0-9]{1,20}")
 
 
@@ -88,4 +90,10 @@ def parse_frames(text: str | None, num_frames: int) -> range | tuple[int, ...]:
             merged.append(piece)
     if len(merged) == 1:
         return merged[0]
+    count = sum(len(piece) for piece in merged)
+    if count > MAX_LISTED:
+        raise InputError(
+            f"frames {text!r}: selects {count} frames in {len(merged)} pieces; a selection that "
+            f"is not one range may hold at most {MAX_LISTED}"
+        )
     return tuple(index for piece in merged for index in piece)

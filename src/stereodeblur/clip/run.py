@@ -28,7 +28,15 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS
-from ..io.outputs import LOCK_NAME, RUN_LOG, OutputLock, check_output, writing_errors
+from ..io.outputs import (
+    LOCK_NAME,
+    MARKER,
+    RUN_LOG,
+    OutputLock,
+    check_output,
+    mark_output,
+    writing_errors,
+)
 from ..io.sources import SourceSpec
 from .checks import check_arguments, check_gt_files, check_inputs, select_gt_frames
 from .executors import DaskExecutor, default_workers, make_executor
@@ -38,7 +46,7 @@ from .runlog import RunLogWriter, read_run_log
 from .worker import captured_stderr
 
 # What a run puts into a folder it created, besides frames: removed again when no frame was kept.
-_OWN_FILES = ("camera.json", RUN_LOG, LOCK_NAME)
+_OWN_FILES = ("camera.json", RUN_LOG, LOCK_NAME, MARKER)
 _OWN_FOLDERS = ("pointcloud/left", "pointcloud/right", "pointcloud", *VIEWS)
 
 
@@ -77,8 +85,10 @@ def _select_frames(scene, frames, settings, views) -> tuple[list[int], list[int]
     last = scene.num_frames - 1
     if frames is None:
         frames = range(scene.num_frames)
-    if isinstance(frames, range) and frames and (min(frames) < 0 or max(frames) > last):
-        raise InputError(f"frames must lie in 0..{last}, got {frames.start}..{frames[-1]}")
+    if isinstance(frames, range) and frames:  # checked before it is expanded
+        low, high = sorted((frames[0], frames[-1]))
+        if low < 0 or high > last:
+            raise InputError(f"frames must lie in 0..{last}, got {low}..{high}")
     frames = sorted(set(frames))
     bad = [f for f in frames if isinstance(f, bool) or not isinstance(f, int) or not 0 <= f <= last]
     if bad or not frames:
@@ -223,6 +233,7 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
     SceneWriter(
         output, plan.scene.info, overwrite=options["overwrite"], protect=_inputs(spec, plan.scene)
     )
+    mark_output(output, "deblur")
     notes += [f"removed the half-written {p}" for p in remove_temporaries(output)]
     from .. import pipeline
 
