@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from stereodeblur.errors import InputError
-from stereodeblur.io.formats import check_png_file
+from stereodeblur.io.formats import check_png_file, write_png
 from stereodeblur.io.frame_source import FrameSource
 from stereodeblur.io.protocol import StereoScene
 from stereodeblur.io.readable import check_files, check_readable
@@ -205,3 +205,16 @@ def test_check_files_reads_ground_truth_headers(tmp_path):
         check_files([scene.gt_path("flow", "left", 2)])
     with pytest.raises(InputError, match="expected a .png, .pfm or .flo file"):
         check_files([scene.root / "camera.json"])
+
+
+def test_kitti_frames_after_the_first_are_checked_by_check_readable(tmp_path):
+    root = write_kitti_2015(tmp_path / "kitti", _frames(1), _frames(2), K, 0.5)
+    path = root / "image_3" / "000000_12.png"
+    write_png(path, np.zeros((24, 30, 3)), bit_depth=8)
+    source = open_source(root, exposure=0.01)
+    check_readable(source, ("left", "right"), [0, 1])
+    with pytest.raises(InputError, match=rf"{path} is 30x24 RGB, expected 32x24 RGB"):
+        check_readable(source)
+    path.write_bytes(b"")
+    with pytest.raises(InputError, match=f"not a PNG file: {path}"):
+        check_readable(source, ("right",), [2])

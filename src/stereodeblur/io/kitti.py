@@ -278,17 +278,24 @@ def _raw_frames(folder: Path) -> list[Path]:
 
 
 def _check_headers(files: dict[str, list[Path]]):
-    """All frames of both views the same size and type; returns the first header."""
+    """The first frames of both views have the same size and type; returns the header.
+
+    Every other frame is checked by :func:`~stereodeblur.io.readable.check_readable`
+    before a run, or when it is read.
+    """
     first = read_png_header(files["left"][0])
-    for view in ("left", "right"):
-        for path in files[view]:
-            header = read_png_header(path)
-            if header != first:
-                raise InputError(
-                    f"{path} is {header.width}x{header.height} with {header.channels} channel(s), "
-                    f"expected {first.width}x{first.height} with {first.channels} like "
-                    f"{files['left'][0]}"
-                )
+    path = files["right"][0]
+    header = read_png_header(path)
+    if (header.width, header.height, header.channels) != (
+        first.width,
+        first.height,
+        first.channels,
+    ):
+        raise InputError(
+            f"{path} is {header.width}x{header.height} with {header.channels} channel(s), "
+            f"expected {first.width}x{first.height} with {first.channels} like "
+            f"{files['left'][0]}"
+        )
     return first
 
 
