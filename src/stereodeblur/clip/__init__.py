@@ -1,8 +1,8 @@
 """Deblur a whole clip: every frame of both views, resumable, in parallel or on a Dask cluster.
 
-Each frame is one task (one per view until the pipeline deblurs both views of a stereo frame
-together). Frame i uses frames i and i + 1; the last frame uses i - 1. The right view is
-deblurred as its own reference with the same model (:mod:`stereodeblur.pipeline`).
+Each stereo frame is one task: its views are deblurred together, the motion computed once
+(:func:`stereodeblur.pipeline.deblur_stereo_frame`); a resumed run deblurs only the views
+not yet finished. Frame i uses frames i and i + 1; the last frame uses i - 1.
 
 Output
 ------

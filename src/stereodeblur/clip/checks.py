@@ -41,35 +41,14 @@ def neighbours(index: int, num_frames: int) -> list[int]:
     return sorted({index, neighbour_of(index, num_frames)})
 
 
-def _png_is_complete(path: Path) -> None:
-    from ..io.formats import read_png_header
-    from .job import is_complete_png
-
-    read_png_header(path)  # a one-line InputError naming the file
-    if not is_complete_png(path):
-        raise InputError(f"truncated PNG file {path}: it does not end with an IEND chunk")
-
-
-def _fallback_check_readable(scene, views, indices) -> None:
-    """Headers of the frame files, where the scene has files per frame."""
-    frame_path = getattr(scene, "frame_path", None)
-    if frame_path is None:
-        return
-    for index in indices:
-        for view in views:
-            _png_is_complete(Path(frame_path(view, index)))
-
-
 def check_inputs(scene, views: Iterable[str], frames: Iterable[int], settings) -> None:
     """Check that every frame file the run will read is there and readable.
 
     The scene-flow motion reads both views of a frame and of its neighbour; the other
     motion sources read the deblurred views only.
     """
-    try:
-        from ..io.readable import check_readable
-    except ImportError:  # the scene protocol's check, where the io package offers it
-        check_readable = _fallback_check_readable
+    from ..io.readable import check_readable
+
     read_views = VIEWS if settings.motion_source == "sceneflow" else tuple(views)
     indices = sorted({i for index in frames for i in neighbours(index, scene.num_frames)})
     check_readable(scene, read_views, indices)
@@ -78,22 +57,11 @@ def check_inputs(scene, views: Iterable[str], frames: Iterable[int], settings) -
 # --------------------------------------------------------------------------- ground truth
 
 
-def _old_gt_needs(scene, index: int) -> list[Path]:
-    neighbour = [i for i in neighbours(index, scene.num_frames) if i != index] or [index]
-    needed = [("disparity", index), ("disparity", neighbour[0]), ("flow", min(index, *neighbour))]
-    return [scene.gt_path(kind, "left", i) for kind, i in needed]
-
-
 def gt_files(scene, index: int, settings, views=VIEWS) -> list[Path]:
     """The ground-truth files deblurring ``views`` of frame ``index`` reads."""
-    from .. import pipeline
+    from ..pipeline import gt_needs
 
-    gt_needs = getattr(pipeline, "gt_needs", None)  # the pipeline's list, once it has one
-    if gt_needs is not None:
-        return [Path(p) for p in gt_needs(scene, index, settings, views=views)]
-    if settings.motion_source != "gt":
-        return []
-    return _old_gt_needs(scene, index)
+    return [Path(p) for p in gt_needs(scene, index, settings, views=views)]
 
 
 def check_gt_known(path: Path) -> None:

@@ -1,9 +1,11 @@
 """The job of a clip run: what every task needs, its outcome, and which results are finished.
 
-A task is one frame index with the views to deblur there. A result is finished when every
-file it writes exists and is complete: the frame PNG (written last, through a temporary name
-and a rename) must start with a valid header of the scene's size and end with the IEND chunk,
-so a 0-byte or truncated PNG (damaged from outside) is deblurred again.
+A task is one stereo frame: its index and the views to deblur there, deblurred together
+(:func:`stereodeblur.pipeline.deblur_stereo_frame`: the motion is computed once). A view's
+result is finished when every file it writes exists and is complete: the frame PNG (written
+last, through a temporary name and a rename) must start with a valid header of the scene's
+size and end with the IEND chunk, so a 0-byte or truncated PNG (damaged from outside) is
+deblurred again.
 """
 
 from __future__ import annotations
@@ -36,7 +38,6 @@ class ClipJob:
     point_cloud: bool = False
     run_id: str = ""  # sources and writers are cached per process and run
     shape: tuple[int, int] | None = None  # (height, width) of a finished frame
-    stereo: bool = False  # a task deblurs its views together (motion computed once)
 
 
 @dataclass(frozen=True)
@@ -85,18 +86,13 @@ class ClipReport:
         return tuple(r for r in self.records if r.status != "done")
 
 
-def make_tasks(
-    frames, views: tuple[str, ...], finished: set[tuple[int, str]], *, stereo: bool
-) -> list[Task]:
-    """Tasks for the (frame, view) pairs not ``finished``: one per frame when ``stereo``,
-    else one per view."""
+def make_tasks(frames, views: tuple[str, ...], finished: set[tuple[int, str]]) -> list[Task]:
+    """One task per frame with the views of it that are not ``finished``."""
     tasks = []
     for index in frames:
         todo = tuple(v for v in views if (index, v) not in finished)
-        if stereo and todo:
+        if todo:
             tasks.append((index, todo))
-        else:
-            tasks.extend((index, (view,)) for view in todo)
     return tasks
 
 

@@ -235,8 +235,6 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
     )
     mark_output(output, "deblur")
     notes += [f"removed the half-written {p}" for p in remove_temporaries(output)]
-    from .. import pipeline
-
     job = ClipJob(
         spec,
         str(output),
@@ -244,11 +242,10 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
         options["point_cloud"],
         run_id=uuid.uuid4().hex,
         shape=tuple(plan.scene.shape),
-        stereo=hasattr(pipeline, "deblur_stereo_frame"),  # motion once per stereo frame
     )
     pairs = [(i, v) for i in plan.frames for v in views]
     skipped = [] if options["overwrite"] else [p for p in pairs if is_finished(job, *p)]
-    tasks = make_tasks(plan.frames, views, set(skipped), stereo=job.stereo)
+    tasks = make_tasks(plan.frames, views, set(skipped))
     workers, scheduler = options["workers"], options["scheduler"]
     if scheduler is None and workers is None:
         workers = default_workers(
@@ -368,7 +365,9 @@ def deblur_clip(
         with _sigterm_as_interrupt(), OutputLock(output):
             report = _run_locked(spec, plan, output, options)
     finally:
-        if created and (report is None or report.done == 0):
+        # A run that created the folder and recorded no frame leaves nothing behind; with
+        # failed frames the log stays, to say why.
+        if created and (report is None or not report.records):
             if _remove_if_only_ours(output) and report is not None:
                 report = dataclasses.replace(report, log=None)
     return report

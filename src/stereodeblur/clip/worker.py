@@ -10,7 +10,6 @@ Python warnings are kept off the terminal: they go into the task's records and t
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 import signal
 import socket
@@ -143,30 +142,12 @@ def _open(job: ClipJob):
     return _OPEN[key]
 
 
-def deblur_clip_frame(source, index: int, view: str, settings):
-    """Deblur frame ``index`` of ``view`` (the last frame too, with ground-truth motion)."""
-    from .. import pipeline
-
-    last = index == source.num_frames - 1
-    # Until the pipeline deblurs the last frame towards the previous one itself (it then
-    # offers gt_needs), the last frame reads its ground truth backwards in time.
-    if settings.motion_source == "gt" and last and not hasattr(pipeline, "gt_needs"):
-        from .reversed import TimeReversed
-
-        result = pipeline.deblur_frame(TimeReversed(source), 0, view=view, settings=settings)
-        motion = dataclasses.replace(result.motion, index=index, neighbour=index - 1)
-        return dataclasses.replace(result, index=index, motion=motion)
-    return pipeline.deblur_frame(source, index, view=view, settings=settings)
-
-
 def _deblur_views(source, index: int, views: tuple[str, ...], job: ClipJob) -> dict:
-    """Results of ``views`` of frame ``index``: together when the job is stereo."""
-    if job.stereo and len(views) > 1:
-        from ..pipeline import deblur_stereo_frame
+    """Results of ``views`` of frame ``index``, deblurred together (motion computed once)."""
+    from ..pipeline import deblur_stereo_frame
 
-        frames = deblur_stereo_frame(source, index, views=views, settings=job.settings).frames
-        return {view: frames[view] for view in views}
-    return {view: deblur_clip_frame(source, index, view, job.settings) for view in views}
+    frames = deblur_stereo_frame(source, index, views=views, settings=job.settings).frames
+    return {view: frames[view] for view in views}
 
 
 def _write_view(job: ClipJob, source, writer, result, view: str, index: int) -> None:
