@@ -8,7 +8,8 @@ from stereodeblur.sceneflow.settings import SceneFlowSettings
 
 def test_defaults_are_valid_and_frozen():
     settings = SceneFlowSettings()
-    assert settings.num_segments is None
+    assert settings.num_segments is None and settings.motion_prior_share is None
+    assert SceneFlowSettings(motion_prior_share=0.003).motion_prior_share == 0.003
     with pytest.raises(dataclasses.FrozenInstanceError):
         settings.smoothness = 1.0
 
@@ -28,6 +29,8 @@ def test_defaults_are_valid_and_frozen():
         ("edge_floor", 1.5),
         ("min_global_fraction", -0.1),
         ("refine_scale", "0.25"),
+        ("motion_prior_share", 1.5),
+        ("motion_prior_share", "none"),
     ],
 )
 def test_invalid_values_name_the_field(name, value):

@@ -272,6 +272,7 @@ def refine_selection(
         scale=settings.refine_scale,
         plane_prior=settings.plane_prior,
         motion_prior=settings.motion_prior,
+        prior_share=settings.motion_prior_share,
     )
     if exposure is not None and exposure.duty_cycle > 0:
         duty = exposure.duty_cycle

@@ -154,9 +154,9 @@ def _add_prior_system(JtJ, Jtr, k, prior, pos, base, jp):
         jp[3, p] = pos[3, p] - pos[0, p]
     for i in range(4):
         for p in range(9):
-            Jtr[k, p] += prior[i] * jp[i, p] * base[i]
+            Jtr[k, p] += prior[k, i] * jp[i, p] * base[i]
             for m in range(p, 9):
-                JtJ[k, p, m] += prior[i] * jp[i, p] * jp[i, m]
+                JtJ[k, p, m] += prior[k, i] * jp[i, p] * jp[i, m]
 
 
 @numba.njit(inline="always")
@@ -246,7 +246,7 @@ def _accumulate(pixels, ref, views, ref_valid, current, fused, camera, scale, pr
         d1 = fb * w / q2
         _prior_residuals(base, abc0, R0, T0, K, k, x, y, rx, ry, rz, fb, d0, x1, y1, d1)
         for i in range(4):
-            energy[k] += prior[i] * base[i] * base[i]
+            energy[k] += prior[k, i] * base[i] * base[i]
         if want_system:
             _position_jacobian(pos, K, T, k, x, y, w, q0, q1, q2, x1, y1, d1, fb)
             _add_prior_system(JtJ, Jtr, k, prior, pos, base, jp)
@@ -281,6 +281,7 @@ def refine_proposals(
     scale: float = 0.25,
     plane_prior: float = 0.1,
     motion_prior: float = 1.0,
+    prior_share: float | None = None,
     valid: list[np.ndarray] | None = None,
 ) -> ProposalSet:
     """Refine every proposal on the pixels that chose it (Levenberg-Marquardt, 9 parameters).
@@ -303,6 +304,10 @@ def refine_proposals(
     motion_prior : float
         Weight of the squared change of the position at t + 1 and of the
         disparity change from t to t + 1 (pixels).
+    prior_share : float, optional
+        If given, a proposal used on more than this share of the (grid) pixels has
+        its motion prior scaled down to add up to that share: a large region's
+        images outweigh the motion it started from.
     valid : list of 4 ndarray of bool, shape (H, W), optional
         Pixels of each image that may be used (e.g. from :func:`cross_blur`);
         default all.
@@ -337,7 +342,11 @@ def refine_proposals(
     abc, R, T = abc0.copy(), R0.copy(), T0.copy()
     K, Kinv = camera.K, camera.K_inv
     damping = np.full(num, 1e-3)
-    prior = np.array([plane_prior, motion_prior, motion_prior, motion_prior], dtype=np.float64)
+    prior = np.tile([plane_prior, motion_prior, motion_prior, motion_prior], (num, 1))
+    if prior_share is not None:
+        counts = np.bincount(gs, minlength=num)
+        budget = prior_share * len(gs)
+        prior[:, 1:] *= np.minimum(1.0, budget / np.maximum(counts, 1))[:, None]
 
     pixels = (gs, xs, ys)
     views = (targets, gx, gy, target_valid)

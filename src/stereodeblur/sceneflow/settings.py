@@ -39,6 +39,7 @@ _SHARES = (
     "blur_change_share",
     "match_cost",
     "min_matched",
+    "motion_prior_share",
 )
 # Fields that must be > 0 (the rest of the floats only >= 0).
 _POSITIVE = (
@@ -132,6 +133,14 @@ class SceneFlowSettings:
     refine_scale: float = 0.25
     plane_prior: float = 0.1
     motion_prior: float = 1.0
+    # None (today's estimator): the motion prior weighs per pixel. A share: a proposal's
+    # motion prior weighs at most as much as on this share of the pixels, so that a large
+    # region's images can correct a motion fitted to a failing dense flow. Not the default
+    # yet: 0.003 took a sharp 80 px road (tests/sceneflow/test_driving.py) from 0.69 to
+    # 0.41 px AEP and the 19 planar and object scenes at 320x240 from 0.277 to 0.272 px mean
+    # AEP (long_exposure_roll 0.161 -> 0.056, forward 0.016 -> 0.029); bench planar / paper
+    # not rerun with it.
+    motion_prior_share: float | None = None
 
     # --- blur balancing (needs the exposure)
     # Not tuned (905d486): balance the blur where its length changes by > 15 % on at least
@@ -169,6 +178,8 @@ class SceneFlowSettings:
                     raise InputError(
                         f"SceneFlowSettings.{f.name} must be a whole number >= 0, got {value!r}"
                     )
+                continue
+            if value is None and f.name == "motion_prior_share":
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise InputError(f"SceneFlowSettings.{f.name} must be a number, got {value!r}")
