@@ -7,10 +7,12 @@ from stereodeblur.synth.render import (
     PlanarObject,
     SceneSetup,
     cast_rays,
+    pixel_offsets,
     render_blurred,
     render_instant,
     render_scene,
     sample_texture,
+    shade,
     track,
 )
 
@@ -140,6 +142,29 @@ def test_zero_motion_blur_is_sharp_image():
     sharp = render_instant([obj], CAMERA, "left", SIZE, 2.0).image
     np.testing.assert_array_equal(blurred.image, sharp)
     assert not blurred.mixed.any()
+
+
+def test_supersampling_averages_the_pixel_area():
+    obj = _plane(_random_texture(), rotation=TILT)
+    assert pixel_offsets(1) == [(0.0, 0.0)]
+    offsets = pixel_offsets(2)
+    assert sorted(offsets) == [(-0.25, -0.25), (-0.25, 0.25), (0.25, -0.25), (0.25, 0.25)]
+    sharp = render_instant([obj], CAMERA, "left", SIZE, 0.5, supersampling=2)
+    centre = render_instant([obj], CAMERA, "left", SIZE, 0.5)
+    shifted = [shade([obj], cast_rays([obj], CAMERA, "left", SIZE, 0.5, offset=o)) for o in offsets]
+    np.testing.assert_allclose(sharp.image, np.mean(shifted, axis=0), atol=1e-6)
+    np.testing.assert_array_equal(sharp.depth, centre.depth)  # geometry at pixel centres
+    assert np.abs(sharp.image - centre.image).max() > 0.05  # the random texture is averaged
+    # One ray per instant, offsets taken in turn: without motion, the blur is the sharp image.
+    exposure = Exposure(20.0, 0.05)
+    blurred = render_blurred(
+        [obj], CAMERA, exposure, "left", SIZE, 0, num_samples=8, supersampling=2
+    )
+    still = render_instant([obj], CAMERA, "left", SIZE, 0.0, supersampling=2).image
+    np.testing.assert_allclose(blurred.image, still, atol=1e-6)
+    assert not blurred.mixed.any()
+    with pytest.raises(ValueError, match="supersampling"):
+        pixel_offsets(0)
 
 
 def test_blurred_frame_is_mean_over_exposure():

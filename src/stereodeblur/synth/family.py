@@ -19,6 +19,14 @@ drawn log-uniformly from :data:`BLUR_RANGE`; the measured value is ``blur_px``. 
 cycle (exposure times frame rate, 20 frames per second) is drawn from 0.5 to 1.0; the
 noise deviation is 0 for a third of the scenes, otherwise drawn from 0.002 to 0.02.
 
+Rendering
+---------
+As the object set (:func:`stereodeblur.synth.render.render_scene`), with ``num_samples``
+instants per blurred frame (1.5 per pixel of the longest blur, 48 to 160) and
+supersampling (:data:`~stereodeblur.synth.scenespec.SUPERSAMPLING` rays per pixel side):
+images are means over each pixel's area, as a sensor's are, so that surfaces seen
+minified (the far road, stripes of 2 px) do not alias in the sharp ground truth.
+
 Split
 -----
 :func:`split`: seeds 0-999 are the training half (tune on these), seeds 1000-1999 the
@@ -132,7 +140,8 @@ def finish_spec(draft: FamilySpec) -> FamilySpec:
     blur = longest_blur(
         middle_objects(spec, camera), camera, spec.size, spec.duty_cycle, border=border
     )
-    num_samples = int(min(160, max(48, math.ceil(1.5 * blur))))
+    rays = spec.supersampling**2  # every pixel offset equally often
+    num_samples = rays * math.ceil(min(160, max(48, 1.5 * blur)) / rays)
     spec = replace(spec, blur_px=blur, num_samples=num_samples)
     _check_in_front(spec, camera)
     try:

@@ -239,7 +239,9 @@ class _Solid:
         y1 = int(np.clip(np.ceil(y.max()) + 2, 0, height))
         return x0, x1, y0, y1
 
-    def cast(self, camera: StereoCamera, view: str, size, fraction: float, *, points: bool):
+    def cast(
+        self, camera: StereoCamera, view: str, size, fraction: float, *, points: bool, offset=(0, 0)
+    ):
         """Depth and texture coordinates (and reference-pose points) of every pixel's ray.
 
         Returns ``(depth, fields)``: ``depth`` (H, W) with ``inf`` where the object is
@@ -257,6 +259,7 @@ class _Solid:
         if x0 >= x1 or y0 >= y1:
             return depth, fields
         y, x = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+        x, y = x + offset[0], y + offset[1]
         rays = np.stack([x, y, np.ones_like(x)], -1) @ B.T  # (h, w, 3) local directions
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             lam, local, u, v = self._local_hits(q, rays)
@@ -647,6 +650,7 @@ def cast_rays(
     fraction: float,
     *,
     points: bool = True,
+    offset: tuple[float, float] = (0.0, 0.0),
 ) -> RayHits:
     """Intersect the ray of every pixel of ``view`` with the objects at instant ``fraction``.
 
@@ -661,6 +665,9 @@ def cast_rays(
         The instant (see the module conventions).
     points : bool
         Also return the reference-pose points hit (needed by :func:`track`).
+    offset : tuple of float
+        ``(dx, dy)``: cast the ray through ``(x + dx, y + dy)`` instead of each pixel
+        centre (supersampling, :func:`pixel_offsets`).
 
     Returns
     -------
@@ -668,15 +675,17 @@ def cast_rays(
     """
     width, height = _check_size(size)
     _check_view(view)
-    x = np.arange(width, dtype=np.float64)[None, :]
-    y = np.arange(height, dtype=np.float64)[:, None]
+    x = np.arange(width, dtype=np.float64)[None, :] + offset[0]
+    y = np.arange(height, dtype=np.float64)[:, None] + offset[1]
     shape = (height, width)
     best = np.full(shape, np.inf)
     object_id = np.full(shape, -1, dtype=np.int32)
     fields = [np.full(shape, np.nan) for _ in range(5 if points else 2)]  # u, v (, X, Y, Z)
     for k, obj in enumerate(objects):
         if isinstance(obj, _Solid):
-            lam, values = obj.cast(camera, view, (width, height), fraction, points=points)
+            lam, values = obj.cast(
+                camera, view, (width, height), fraction, points=points, offset=offset
+            )
         else:
             numerator, g, o, A = _ray_geometry(obj.normal, obj.twist, camera, view, fraction)
             lam = _depth(numerator, g, x, y)
@@ -800,6 +809,7 @@ def render_instant(
     fraction: float,
     *,
     track_to=(),
+    supersampling: int = 1,
 ) -> InstantRender:
     """The instantaneous image of ``view`` at ``fraction``, with depth, object ids and tracks.
 
@@ -814,10 +824,22 @@ def render_instant(
         The instant (see the module conventions).
     track_to : sequence of float
         Instants at which to project the point seen at every pixel (for flow).
+    supersampling : int
+        The image is the mean over ``supersampling**2`` rays per pixel
+        (:func:`pixel_offsets`: the pixel's area); depth, ids and tracks are those of the
+        ray through the pixel centre.
     """
     hits = cast_rays(objects, camera, view, size, fraction)
+    if supersampling == 1:
+        image = shade(objects, hits)
+    else:
+        offsets = pixel_offsets(supersampling)
+        image = sum(
+            shade(objects, cast_rays(objects, camera, view, size, fraction, offset=o))
+            for o in offsets
+        ) / len(offsets)
     return InstantRender(
-        image=shade(objects, hits),
+        image=np.asarray(image, dtype=np.float32),
         depth=np.array(hits.depth),
         object_id=hits.object_id,
         tracked=track(objects, camera, view, hits, track_to),
@@ -833,25 +855,31 @@ def render_blurred(
     frame: int,
     *,
     num_samples: int = 48,
+    supersampling: int = 1,
 ) -> BlurredRender:
     """Frame ``frame`` of ``view``: the mean of ``num_samples`` instantaneous images.
 
     The instants are ``frame + exposure.sample_fractions(num_samples)``, the midpoints
-    of equal sub-intervals of the exposure. Use at least 32 for a smooth blur.
+    of equal sub-intervals of the exposure. Use at least 32 for a smooth blur. With
+    ``supersampling`` S, instant ``j`` casts its rays through the pixel offset
+    ``pixel_offsets(S)[j % S**2]`` (one ray per pixel and instant; the mean covers the
+    pixel's area as well as the exposure); ``mixed`` compares instants of equal offset.
     """
     if int(num_samples) != num_samples or num_samples < 1:
         raise ValueError(f"num_samples must be a positive integer, got {num_samples!r}")
     width, height = _check_size(size)
+    offsets = pixel_offsets(supersampling)
     total = np.zeros((height, width, 3))
-    first_id = None
+    first_id = {}
     mixed = np.zeros((height, width), dtype=bool)
-    for s in frame + exposure.sample_fractions(int(num_samples)):
-        hits = cast_rays(objects, camera, view, size, s, points=False)
+    for j, s in enumerate(frame + exposure.sample_fractions(int(num_samples))):
+        which = j % len(offsets)
+        hits = cast_rays(objects, camera, view, size, s, points=False, offset=offsets[which])
         total += shade(objects, hits)
-        if first_id is None:
-            first_id = hits.object_id
+        if which not in first_id:
+            first_id[which] = hits.object_id
         else:
-            mixed |= hits.object_id != first_id
+            mixed |= hits.object_id != first_id[which]
     return BlurredRender(image=(total / num_samples).astype(np.float32), mixed=mixed)
 
 
@@ -933,8 +961,26 @@ class RenderedScene:
         return len(self.frames["left"])
 
 
-def render_scene(setup: SceneSetup, *, num_samples: int = 48) -> RenderedScene:
-    """Render the blurred frames of both views and the ground truth of ``setup``."""
+def pixel_offsets(supersampling: int) -> list[tuple[float, float]]:
+    """``(dx, dy)`` of ``supersampling**2`` rays on a regular grid over a pixel's area.
+
+    ``[(0, 0)]`` for 1 (the pixel centre), e.g. the four ``(+-1/4, +-1/4)`` for 2.
+    """
+    if int(supersampling) != supersampling or supersampling < 1:
+        raise ValueError(f"supersampling must be a positive integer, got {supersampling!r}")
+    steps = (np.arange(int(supersampling)) + 0.5) / supersampling - 0.5
+    return [(float(dx), float(dy)) for dy in steps for dx in steps]
+
+
+def render_scene(
+    setup: SceneSetup, *, num_samples: int = 48, supersampling: int = 1
+) -> RenderedScene:
+    """Render the blurred frames of both views and the ground truth of ``setup``.
+
+    ``supersampling`` (see :func:`render_blurred` and :func:`render_instant`) makes blurred
+    and sharp images means over each pixel's area; disparity, flow and ids stay those of
+    the pixel centres.
+    """
     width, height = setup.size
     grid = np.stack(np.meshgrid(np.arange(width), np.arange(height)), -1).astype(np.float64)
     frames, sharp, disparity, mixed, object_ids = ({v: [] for v in VIEWS} for _ in range(5))
@@ -949,13 +995,20 @@ def render_scene(setup: SceneSetup, *, num_samples: int = 48) -> RenderedScene:
                 setup.size,
                 i,
                 num_samples=num_samples,
+                supersampling=supersampling,
             )
             frames[view].append(blurred.image)
             mixed[view].append(blurred.mixed)
             last = i == setup.num_frames - 1
             track_to = (i + 1,) if view == "left" and not last else ()
             instant = render_instant(
-                setup.objects, setup.camera, view, setup.size, i, track_to=track_to
+                setup.objects,
+                setup.camera,
+                view,
+                setup.size,
+                i,
+                track_to=track_to,
+                supersampling=supersampling,
             )
             sharp[view].append(instant.image)
             object_ids[view].append(instant.object_id)

@@ -46,6 +46,11 @@ TEST_SEEDS = range(1000, 2000)
 PHOTO_MAGNIFICATION = 2.5
 """Pixels per texel of photographs where a surface faces the camera (as the object set)."""
 
+SUPERSAMPLING = 3
+"""Rays per pixel side: images are means over the pixel's area (as a sensor's are), so that
+surfaces seen minified (far road and facades) do not alias (see
+:func:`~stereodeblur.synth.render.render_scene`)."""
+
 PATTERN_MAGNIFICATION = 1.0
 """Pixels per texel of procedural patterns: a stripe period in texels is one in pixels."""
 
@@ -122,8 +127,10 @@ class FamilySpec:
     blur_target, blur_px : float
         Drawn and reached longest blur of frame 1 (left view), pixels.
     num_samples : int
-        Instants averaged per blurred frame.
+        Instants averaged per blurred frame (a multiple of ``supersampling**2``).
     description : str
+    supersampling : int
+        Rays per pixel side (:data:`SUPERSAMPLING`).
     """
 
     seed: int
@@ -139,6 +146,7 @@ class FamilySpec:
     blur_px: float
     num_samples: int
     description: str = ""
+    supersampling: int = SUPERSAMPLING
 
     @property
     def name(self) -> str:
@@ -302,7 +310,7 @@ def write_family_scene(
         shutil.rmtree(partial)
     report(progress, f"{spec.name}: rendering")
     samples = spec.num_samples if num_samples is None else int(num_samples)
-    scene = render_scene(family_setup(spec), num_samples=samples)
+    scene = render_scene(family_setup(spec), num_samples=samples, supersampling=spec.supersampling)
     if spec.noise > 0:
         scene = add_noise(scene, spec.noise, seed=spec.seed)
     write_rendered_scene(scene, partial)
