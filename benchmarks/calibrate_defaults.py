@@ -307,6 +307,19 @@ def summary_table(rows, motions) -> list[str]:
     return lines
 
 
+def code_version() -> str:
+    """The repository's commit (and whether the working tree differs), if git can tell."""
+    import subprocess
+
+    try:
+        run = dict(capture_output=True, text=True, check=True, cwd=Path(__file__).parent)
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], **run).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], **run).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return commit + (" with uncommitted changes under src/" if dirty.strip() else "")
+
+
 def report(rows, args, seconds: float) -> str:
     motions = args.motions
     passed = checks(rows, motions)
@@ -315,7 +328,7 @@ def report(rows, args, seconds: float) -> str:
         "",
         f"Command: `python benchmarks/calibrate_defaults.py {' '.join(sys.argv[1:])}`; "
         f"{seconds / 60:.1f} min wall time ({os.cpu_count()} cores, --jobs {args.jobs}, "
-        "cached renders and columns reused).",
+        f"cached renders and columns reused); code {code_version()} at the end of the run.",
         "",
         (
             "Test split: scenes never looked at while tuning."
