@@ -68,7 +68,9 @@ class FrameRecord:
 class ClipReport:
     """What a run did: one record per view it ran, and the (frame, view) pairs it skipped.
 
-    ``log`` is the run log, or None when the run left no output folder behind.
+    ``log`` is the run log, or None when the run left no output folder behind. ``warnings``
+    are for the user (e.g. a video pair of unequal length, frames without ground truth); the
+    libraries' messages go to the log only.
     """
 
     output: Path
@@ -76,6 +78,7 @@ class ClipReport:
     records: tuple[FrameRecord, ...]
     skipped: tuple[tuple[int, str], ...]
     seconds: float
+    warnings: tuple[str, ...] = ()
 
     @property
     def done(self) -> int:

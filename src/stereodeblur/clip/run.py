@@ -77,7 +77,8 @@ class _Plan:
 
     scene: object
     frames: tuple[int, ...]
-    notes: tuple[str, ...]
+    warnings: tuple[str, ...]  # for the user: the source's warnings, frames left out
+    notes: tuple[str, ...]  # for the log: the warnings and the libraries' messages
 
 
 def _select_frames(scene, frames, settings, views) -> tuple[list[int], list[int], bool]:
@@ -109,9 +110,10 @@ def _prepare(spec: SourceSpec, frames, views, settings) -> _Plan:
         scene = spec.open()
         frames, without_gt, _ = _select_frames(scene, frames, settings, views)
         check_inputs(scene, views, frames, settings)
-    notes = [*scene.warnings, *(str(w.message) for w in caught), *messages]
-    notes += [f"frame {i}: no ground-truth motion, not deblurred" for i in without_gt]
-    return _Plan(scene, tuple(frames), tuple(dict.fromkeys(notes)))
+    warned = [*scene.warnings]
+    warned += [f"frame {i}: no ground-truth motion, not deblurred" for i in without_gt]
+    notes = [*warned, *(str(w.message) for w in caught), *messages]
+    return _Plan(scene, tuple(frames), tuple(warned), tuple(dict.fromkeys(notes)))
 
 
 def _inputs(spec: SourceSpec, scene) -> list[str]:
@@ -274,7 +276,9 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
                 "frames_per_minute": round(done / seconds * 60, 3) if seconds > 0 else None,
             }
         )
-    return ClipReport(output, output / RUN_LOG, tuple(records), tuple(skipped), seconds)
+    return ClipReport(
+        output, output / RUN_LOG, tuple(records), tuple(skipped), seconds, plan.warnings
+    )
 
 
 def deblur_clip(

@@ -10,6 +10,7 @@ Python warnings are kept off the terminal: they go into the task's records and t
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import signal
 import socket
@@ -109,21 +110,23 @@ def _dask_threads(host_threads: dict | None) -> int | None:
 
 @contextlib.contextmanager
 def captured_stderr(lines: list[str]) -> Iterator[None]:
-    """Send what this process writes on file descriptor 2 into ``lines`` (one per line)."""
-    sys.stderr.flush()
+    """Send what this process writes on the standard error (file descriptor 2 and
+    ``sys.stderr``) into ``lines``, one entry per line."""
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
     saved = os.dup(2)
+    text = io.StringIO()
     with tempfile.TemporaryFile() as sink:
         os.dup2(sink.fileno(), 2)
         try:
-            yield
+            with contextlib.redirect_stderr(text):
+                yield
         finally:
-            with contextlib.suppress(Exception):
-                sys.stderr.flush()
             os.dup2(saved, 2)
             os.close(saved)
             sink.seek(0)
-            text = sink.read().decode("utf-8", "replace")
-            lines.extend(line.strip() for line in text.splitlines() if line.strip())
+            written = sink.read().decode("utf-8", "replace") + text.getvalue()
+            lines.extend(line.strip() for line in written.splitlines() if line.strip())
 
 
 # --------------------------------------------------------------------------- one task
