@@ -192,6 +192,7 @@ def blur_length_change(
     positions = []
     for u in (-half, half, 1 - half, 1 + half):
         M = se3_exp(u * twists)  # per proposal; Q = R P + T per pixel, row by row
+        # Summed in the order numpy's einsum took on the transposed points, 0, 1, 2.
         Q = [
             M[g, i, 0] * P[0] + M[g, i, 1] * P[1] + M[g, i, 2] * P[2] + M[g, i, 3] for i in range(3)
         ]

@@ -117,9 +117,16 @@ class SceneFlow:
     def _points_at(self, fraction: float) -> np.ndarray:
         from ..geometry.rigid import se3_exp
 
-        M = se3_exp(fraction * self.twists)[self.labels]  # (H, W, 4, 4)
+        M = se3_exp(fraction * self.twists)  # (L, 4, 4); R P + T per pixel, row by row
         P = self.points()
-        return np.einsum("hwij,hwj->hwi", M[..., :3, :3], P) + M[..., :3, 3]
+        labels = self.labels
+        # Summed in the order of numpy's einsum over j, (0 + 2) + 1, as before.
+        rows = [
+            (M[labels, i, 0] * P[..., 0] + M[labels, i, 2] * P[..., 2])
+            + M[labels, i, 1] * P[..., 1]
+            for i in range(3)
+        ]
+        return np.stack([row + M[labels, i, 3] for i, row in enumerate(rows)], axis=-1)
 
     def with_occlusion(self, occlusion: np.ndarray) -> SceneFlow:
         """The same scene flow with another occlusion mask (sharing the computed geometry)."""

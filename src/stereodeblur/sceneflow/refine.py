@@ -341,7 +341,6 @@ def refine_proposals(
     abc0, R0, T0 = proposals.abc.copy(), proposals.R.copy(), proposals.T.copy()
     abc, R, T = abc0.copy(), R0.copy(), T0.copy()
     K, Kinv = camera.K, camera.K_inv
-    damping = np.full(num, 1e-3)
     prior = np.tile([plane_prior, motion_prior, motion_prior, motion_prior], (num, 1))
     if prior_share is not None:
         counts = np.bincount(gs, minlength=num)
@@ -358,8 +357,17 @@ def refine_proposals(
             pixels, normed[0], views, ref_valid, (a, r, t), fused, cam, float(scale), prior, want
         )
 
+    return ProposalSet(*_levenberg_marquardt(run, abc, R, T, num_iterations))
+
+
+def _levenberg_marquardt(run, abc, R, T, num_iterations):
+    """Damped Gauss-Newton steps per proposal, each kept only where it lowers the energy.
+
+    ``run(abc, R, T, want_system)`` returns the energy per proposal and, if asked, the
+    normal equations."""
+    damping = np.full(len(abc), 1e-3)
     current, JtJ, Jtr = run(abc, R, T, True)
-    for _ in range(num_iterations):
+    for iteration in range(num_iterations):
         diag = np.einsum("gii->gi", JtJ)
         A = JtJ + np.eye(9) * (damping[:, None] * diag + 1e-9)[:, :, None]
         delta = -np.linalg.solve(A, Jtr[..., None])[..., 0]
@@ -367,14 +375,19 @@ def refine_proposals(
         dR = so3_exp(delta[:, 6:])
         new_R = dR @ R
         new_T = np.einsum("gij,gj->gi", dR, T) + delta[:, 3:6]
-        trial, _, _ = run(new_abc, new_R, new_T, False)
+        # The trial's normal equations are those of the next step where it is kept (each
+        # proposal's sums involve its own parameters only).
+        last = iteration == num_iterations - 1
+        trial, trial_JtJ, trial_Jtr = run(new_abc, new_R, new_T, not last)
         better = trial < current
         abc = np.where(better[:, None], new_abc, abc)
         R = np.where(better[:, None, None], new_R, R)
         T = np.where(better[:, None], new_T, T)
         damping = np.where(better, damping * 0.3, damping * 10)
-        current, JtJ, Jtr = run(abc, R, T, True)
-    return ProposalSet(abc, R, T)
+        current = np.where(better, trial, current)
+        JtJ = np.where(better[:, None, None], trial_JtJ, JtJ)
+        Jtr = np.where(better[:, None], trial_Jtr, Jtr)
+    return abc, R, T
 
 
 def _usable(camera, proposals, groups, x, y, ref_valid, target_valid, margin):
