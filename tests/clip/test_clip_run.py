@@ -93,3 +93,17 @@ def test_sigterm_stops_the_run_like_an_interrupt(clip_scene, tmp_path):
     events = read_run_log(out / "run-log.jsonl").events
     assert events[-1]["event"] == "interrupted" and events[-1]["reason"] == "SIGTERM"
     assert len(frame_files(out)) == 2  # the finished frame is kept
+
+
+def test_a_run_refused_by_the_lock_removes_nothing_even_if_it_made_the_folder(
+    clip_scene, tmp_path, monkeypatch
+):
+    import stereodeblur.clip.run as run
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "camera.json").write_text("{}")  # what the other run has written so far
+    monkeypatch.setattr(run, "_make_output", lambda output: True)  # "this run made it"
+    with OutputLock(out), pytest.raises(InputError, match="in use"):
+        _run(clip_scene, out, frames=[0], workers=1)
+    assert sorted(p.name for p in out.iterdir()) == [".lock", "camera.json"]

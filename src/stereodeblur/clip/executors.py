@@ -218,7 +218,12 @@ class DaskExecutor:
             for future in futures:
                 if not future.done():
                     future.cancel()
-            client.close()
+            self.close()
+
+    def close(self) -> None:
+        """Disconnect from the scheduler (idempotent)."""
+        if self.client is not None:
+            self.client.close()
             self.client = None
 
 

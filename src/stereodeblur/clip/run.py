@@ -346,11 +346,7 @@ def deblur_clip(
     plan = _prepare(spec, frames, views, settings)
     subfolders = [*VIEWS, *(["pointcloud/left", "pointcloud/right"] if point_cloud else [])]
     check_output(output, _inputs(spec, plan.scene), subfolders=subfolders, command="deblur")
-    executor = None
-    if scheduler is not None:
-        executor = DaskExecutor(scheduler)
-        executor.connect()  # an unreachable scheduler is refused before anything is written
-    output = Path(os.path.abspath(output))
+    executor = DaskExecutor(scheduler) if scheduler is not None else None
     options = {
         "settings": settings,
         "views": views,
@@ -363,10 +359,23 @@ def deblur_clip(
         "on_frame": on_frame,
         "command": command,
     }
+    try:
+        if executor is not None:
+            executor.connect()  # an unreachable scheduler is refused before anything is written
+        return _run_in(spec, plan, Path(os.path.abspath(output)), options)
+    finally:
+        if executor is not None:
+            executor.close()
+
+
+def _run_in(spec: SourceSpec, plan: _Plan, output: Path, options: dict) -> ClipReport:
+    """Create and lock ``output``, run, and clean up what this run created and did not use."""
     created = _make_output(output)
+    lock = OutputLock(output)
+    lock.__enter__()  # refused: the folder (even one this run just created) is another run's
     report = None
     try:
-        with _sigterm_as_interrupt(), OutputLock(output):
+        with _sigterm_as_interrupt():
             report = _run_locked(spec, plan, output, options)
     finally:
         # A run that created the folder and recorded no frame leaves nothing behind; with
@@ -374,4 +383,5 @@ def deblur_clip(
         if created and (report is None or not report.records):
             if _remove_if_only_ours(output) and report is not None:
                 report = dataclasses.replace(report, log=None)
+        lock.release()
     return report
