@@ -7,7 +7,7 @@ import sys
 
 from ..errors import InputError
 from .base import EXIT_USAGE, add_quiet, integer
-from .printer import progress_printer
+from .printer import print_warnings, progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
 from .sources import add_source_options, input_paths, open_source, source_spec
 
@@ -93,10 +93,11 @@ def run(args: argparse.Namespace) -> int:
         check_gt_motion(source, indices, settings, views)
     if args.sceneflow:
         return _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views)
-    return _deblur_clip(args, settings, spec, frames, views)
+    return _deblur_clip(args, settings, spec, frames, views, shown=source.warnings)
 
 
-def _deblur_clip(args, settings, spec, frames, views) -> int:
+def _deblur_clip(args, settings, spec, frames, views, *, shown=()) -> int:
+    """Run :func:`~stereodeblur.clip.deblur_clip`; print its warnings not ``shown`` yet."""
     from ..clip import deblur_clip
 
     report = deblur_clip(
@@ -112,6 +113,7 @@ def _deblur_clip(args, settings, spec, frames, views) -> int:
         progress=progress_printer(args.quiet) or False,
         command=["stereodeblur", *args.argv],
     )
+    print_warnings(w for w in report.warnings if w not in shown)
     failed = report.failed
     if failed:
         first = failed[0]
