@@ -37,7 +37,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io.outputs import atomic_write, atomic_write_text
 from ..progress import ProgressCallback, report
 from ..settings import DeblurSettings
 from .paper_columns import (
@@ -141,6 +140,7 @@ def cached_motion(scene, source: str, settings, cache: Path):
     """
     from dataclasses import replace
 
+    from ..io.outputs import atomic_write
     from ..pipeline import FrameMotion, dense_flow, frame_motion, neighbour_of
     from ..sceneflow.storage import load_sceneflow, save_sceneflow
 
@@ -279,6 +279,7 @@ def evaluate_scene(
 ) -> SceneResult:
     """All ``columns`` on the scene at ``root``, reusing results cached under ``cache``."""
     from ..io.formats import write_png
+    from ..io.outputs import atomic_write_text
     from ..io.scene import open_scene
     from .metrics import psnr, ssim
 
@@ -424,6 +425,8 @@ def run_paper_bench(
     progress : callable, optional
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
+    from ..io.outputs import atomic_write_text
+
     start = time.perf_counter()
     names = list(scenes) if scenes else default_scenes()
     for name in names:

@@ -44,7 +44,6 @@ import numpy as np
 
 from ..geometry.camera import StereoCamera
 from ..geometry.rigid import se3_exp, so3_log
-from ..io.outputs import atomic_write_text
 from ..progress import ProgressCallback, report
 from .metrics import disparity_error, endpoint_error
 
@@ -253,6 +252,8 @@ def run_sceneflow_benchmark(scene_roots, *, frame: int = 1, out=None) -> list[Sc
         :func:`~stereodeblur.sceneflow.storage.write_sceneflow_outputs` and debug
         pictures, and ``OUT/sceneflow_bench.json`` with all results.
     """
+    from ..io.outputs import atomic_write_text
+
     results = [evaluate_scene(root, frame=frame, out=out) for root in scene_roots]
     if out is not None:
         path = Path(out) / "sceneflow_bench.json"
@@ -388,6 +389,7 @@ def run_sceneflow_bench(
     progress : callable, optional
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
+    from ..io.outputs import atomic_write_text
     from ..synth.objects import OBJECT_SCENES
     from ..synth.planar import PLANAR_MOTIONS, write_planar_set
     from .paper_bench import render_missing, scene_kind
