@@ -211,6 +211,20 @@ def test_deterministic(colour_image, box_blur):
     assert first.history == second.history
 
 
+def test_row_ranges_on_worker_threads_give_the_same_result(colour_image, box_blur, monkeypatch):
+    """Small images run on the calling thread; force ranges on the worker threads: same bits."""
+    from stereodeblur.deconv import cg
+
+    shape = (40, 48)
+    operator = box_blur(shape, 5, 9, seed=10)
+    blurred = operator.forward(colour_image(shape))
+    serial = deblur_irls(blurred, operator, num_irls=3)
+    monkeypatch.setattr(cg, "PARALLEL_MIN_SIZE", 1)
+    threaded = deblur_irls(blurred, operator, num_irls=3)
+    np.testing.assert_array_equal(threaded.image, serial.image)
+    assert threaded.history == serial.history
+
+
 def test_update_weights_hook_and_progress(camera_image, box_blur):
     sharp, operator, blurred = blurred_camera(camera_image, box_blur, (32, 48), seed=6)
     calls, progress = [], []
