@@ -70,3 +70,20 @@ def test_a_weaker_motion_prior_lets_the_images_correct_the_ego_motion():
         error = np.linalg.norm(estimate.sceneflow.flow() - pair.flow, axis=-1)
         errors[share] = error[pair.road].mean()
     assert errors[0.003] < 0.5 < errors[None] < 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="blur balancing moves the road's motion 2 % off")
+def test_blurred_fast_road_with_a_gain_change():
+    # 80 px at the bottom, blur over half the frame interval, 40 % brighter at t + 1, half
+    # the texture. The fused motion is right (0.03 %) and the first refinement keeps it;
+    # the blur-balanced second refinement (no prior) takes it 1.9 % slow: 1.3 px on the
+    # road. Without balancing 0.40 px, but fast_approach needs it (README, scene flow).
+    pair = driving_pair(
+        (320, 240), bottom_flow=80.0, duty_cycle=0.5, gain=1.4, road_contrast=0.015, num_samples=8
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        estimate = estimate_scene_flow(*pair.frames, pair.camera, exposure=pair.exposure)
+    error = np.linalg.norm(estimate.sceneflow.flow() - pair.flow, axis=-1)
+    assert error[pair.road].mean() < 1.0

@@ -8,6 +8,7 @@ from .model import SceneFlow
 
 _LAZY = {
     "SceneFlowEstimate": ".estimate",
+    "SceneFlowSettings": ".settings",
     "SceneFlowWarning": ".estimate",
     "estimate_scene_flow": ".estimate",
     "initial_optical_flow": ".initial",
