@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import os
 import signal
 import socket
@@ -37,6 +38,7 @@ from ..io.outputs import (
     mark_output,
     writing_errors,
 )
+from ..io.protocol import StereoScene
 from ..io.sources import SourceSpec
 from .checks import check_arguments, check_gt_files, check_inputs, select_gt_frames
 from .executors import DaskExecutor, default_workers, make_executor
@@ -75,13 +77,14 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 class _Plan:
     """What the checks found: the open scene, the frames to run and the notes for the log."""
 
-    scene: object
+    scene: StereoScene
     frames: tuple[int, ...]
     warnings: tuple[str, ...]  # for the user: the source's warnings, frames left out
     notes: tuple[str, ...]  # for the log: the warnings and the libraries' messages
 
 
-def _select_frames(scene, frames, settings, views) -> tuple[list[int], list[int], bool]:
+def _select_frames(scene, frames, settings, views) -> tuple[list[int], list[int]]:
+    """The frames to run and (with ground-truth motion) those left out for lack of it."""
     explicit = frames is not None
     last = scene.num_frames - 1
     if frames is None:
@@ -99,7 +102,7 @@ def _select_frames(scene, frames, settings, views) -> tuple[list[int], list[int]
         frames, without_gt = select_gt_frames(scene, frames, explicit, settings, views)
     else:
         check_gt_files(scene, frames, settings, views)
-    return frames, without_gt, explicit
+    return frames, without_gt
 
 
 def _prepare(spec: SourceSpec, frames, views, settings) -> _Plan:
@@ -108,7 +111,7 @@ def _prepare(spec: SourceSpec, frames, views, settings) -> _Plan:
     with captured_stderr(messages), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         scene = spec.open()
-        frames, without_gt, _ = _select_frames(scene, frames, settings, views)
+        frames, without_gt = _select_frames(scene, frames, settings, views)
         check_inputs(scene, views, frames, settings)
     warned = [*scene.warnings]
     warned += [f"frame {i}: no ground-truth motion, not deblurred" for i in without_gt]
@@ -122,7 +125,7 @@ def _inputs(spec: SourceSpec, scene) -> list[str]:
 
 
 def _make_output(output: Path) -> bool:
-    """Create ``output`` if needed; whether this run created it."""
+    """Create ``output`` (and its parents) if needed; whether this run created ``output``."""
     with writing_errors(output):
         output.parent.mkdir(parents=True, exist_ok=True)
         try:
@@ -231,6 +234,7 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
 
     settings, views = options["settings"], options["views"]
     identity = {"source": list(spec.paths), "settings": dataclasses.asdict(settings)}
+    identity = json.loads(json.dumps(identity, default=str))  # as the log stores it
     notes = list(plan.notes) + _check_identity(output, identity, options["overwrite"])
     SceneWriter(
         output, plan.scene.info, overwrite=options["overwrite"], protect=_inputs(spec, plan.scene)
