@@ -302,7 +302,9 @@ def summary_table(rows, motions) -> list[str]:
             lines.append(
                 f"| {row['scene']} | {row['blur_px']:.1f} | {row['noise']:.3f} | {source} | "
                 f"{g['default']:.2f} | {g['paper']:.2f} | {g['best_alpha']} | {g['best']:.2f} | "
-                f"{g['below_best']:+.2f} | {g['below_paper']:+.2f} | {mono:.2f} |"
+                f"{g['below_best']:+.2f} | {g['below_paper']:+.2f} | "
+                + ("–" if math.isnan(mono) else f"{mono:.2f}")
+                + " |"
             )
     return lines
 
