@@ -16,6 +16,7 @@ from .errors import InputError
 from .sceneflow.settings import SceneFlowSettings
 
 __all__ = [
+    "ALPHA_MAX",
     "BOUNDARY_MASKS",
     "BOUNDARY_WEIGHTS",
     "DEFAULT_ALPHA",
@@ -28,6 +29,9 @@ __all__ = [
     "NUM_IRLS",
     "NUM_SAMPLES",
     "PAPER_ALPHA",
+    "ITERATIONS_RANGE",
+    "SAMPLES_RANGE",
+    "SEGMENTS_RANGE",
     "DeblurSettings",
 ]
 
@@ -55,12 +59,29 @@ DEFAULT_ALPHA = "auto"
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene.
 DEFAULT_BOUNDARY_WEIGHTS = "adaptive"
 
+# Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre
+# instant alone, an identity "blur"; the operator's memory grows with samples x pixels (about
+# 4.4 bytes per sample and pixel at 320x240), and 1000 is 14 times the paper's N = 70.
+SAMPLES_RANGE = (2, 1000)
+# Zero iterations return the input unchanged; the paper uses 10 x 25.
+ITERATIONS_RANGE = (1, 1000)
+SEGMENTS_RANGE = (1, 100_000)
+# Eq. 6 on images in [0, 1]: at 1 the prior already outweighs the data term.
+ALPHA_MAX = 1.0
 
-def _check_count(name: str, value, *, optional: bool = False) -> None:
+
+def _check_count(name: str, value, limits: tuple[int, int], *, optional: bool = False) -> None:
     if optional and value is None:
         return
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise InputError(f"{name} must be a whole number >= 1, got {value!r}")
+    low, high = limits
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Integral)
+        or not low <= value <= high
+    ):
+        raise InputError(
+            f"{name} must be a whole number in {low}..{high}, got {value!r}", parameter=name
+        )
 
 
 @dataclass(frozen=True)
@@ -134,19 +155,22 @@ class DeblurSettings:
             )
         if self.motion_source == "initial-flow" and self.kernels != "displacement":
             raise InputError("motion_source='initial-flow' needs kernels='displacement'")
-        _check_count("num_samples", self.num_samples)
-        _check_count("num_irls", self.num_irls)
-        _check_count("num_cg", self.num_cg)
-        _check_count("num_segments", self.num_segments, optional=True)
+        _check_count("num_samples", self.num_samples, SAMPLES_RANGE)
+        _check_count("num_irls", self.num_irls, ITERATIONS_RANGE)
+        _check_count("num_cg", self.num_cg, ITERATIONS_RANGE)
+        _check_count("num_segments", self.num_segments, SEGMENTS_RANGE, optional=True)
         if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
             raise InputError(f"seed must be a whole number, got {self.seed!r}")
         if self.alpha != "auto":
             if isinstance(self.alpha, str | bool) or not (
                 isinstance(self.alpha, numbers.Real)
                 and math.isfinite(self.alpha)
-                and self.alpha > 0
+                and 0 < self.alpha <= ALPHA_MAX
             ):
-                raise InputError(f"alpha must be 'auto' or a positive number, got {self.alpha!r}")
+                raise InputError(
+                    f"alpha must be 'auto' or in (0, {ALPHA_MAX:g}], got {self.alpha!r}",
+                    parameter="alpha",
+                )
         if self.boundary_weights not in BOUNDARY_WEIGHTS:
             raise InputError(
                 f"boundary weights must be one of {', '.join(BOUNDARY_WEIGHTS)}, "

@@ -39,6 +39,12 @@ def test_num_segments_overrides_the_estimators():
         ("num_segments", -3, "num_segments"),
         ("seed", "zero", "seed"),
         ("alpha", float("nan"), "alpha"),
+        ("num_samples", 1, r"num_samples must be a whole number in 2\.\.1000, got 1"),
+        ("num_samples", 100_000, r"in 2\.\.1000"),
+        ("num_cg", 0, r"num_cg must be a whole number in 1\.\.1000"),
+        ("num_irls", 1001, r"in 1\.\.1000"),
+        ("num_segments", 10**6, r"in 1\.\.100000"),
+        ("alpha", 1e300, r"alpha must be 'auto' or in \(0, 1\]"),
         ("sceneflow", {"num_segments": 3}, "SceneFlowSettings"),
     ],
 )

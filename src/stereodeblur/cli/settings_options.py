@@ -5,7 +5,8 @@ the option's default is the field's default. :func:`add_settings_options` adds o
 parser, :func:`settings_from_arguments` builds the settings from parsed arguments and
 :func:`arguments_for` gives the options that reproduce given settings.
 
-Limits, checked by the option types before anything is read or allocated:
+Limits (``stereodeblur.settings``, which ``DeblurSettings`` also checks), checked by the option
+types before anything is read or allocated:
 
 - ``--samples`` in 2..1000. One sample is the frame's centre instant alone, an identity
   "blur" that returns the input, so a blur needs at least 2. Building the operator costs
@@ -25,12 +26,11 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+from ..settings import ALPHA_MAX
+from ..settings import ITERATIONS_RANGE as ITERATIONS
+from ..settings import SAMPLES_RANGE as SAMPLES
+from ..settings import SEGMENTS_RANGE as SEGMENTS
 from .base import integer
-
-SAMPLES = (2, 1000)
-ITERATIONS = (1, 1000)
-SEGMENTS = (1, 100_000)
-ALPHA_MAX = 1.0
 
 
 def _settings_module():

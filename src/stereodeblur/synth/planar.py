@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.plane import move_plane
 from ..geometry.rigid import se3_exp, so3_exp
@@ -140,6 +141,34 @@ def _resize(texture: np.ndarray, width: int, height: int) -> np.ndarray:
     return cv2.resize(texture, (width, height), interpolation=cv2.INTER_AREA)
 
 
+def _fit_texture(texture, extent, min_magnification: float, max_magnification: float):
+    """``texture`` shrunk or mirror-extended so that covering ``extent`` (pixels along the
+    plane's two axes) magnifies it by a scale in ``[min_magnification, max_magnification]``;
+    returns it and that scale (pixels per texel)."""
+    texture = np.asarray(texture, dtype=np.float32)
+    h, w = texture.shape[:2]
+    scale = max(extent[0] / (w - 1), extent[1] / (h - 1))
+    if scale < min_magnification:
+        shrink = scale / min_magnification
+        new_w = max(2, round((w - 1) * shrink) + 1)
+        new_h = max(2, round((h - 1) * shrink) + 1)
+        texture = _resize(texture, new_w, new_h)
+        h, w = texture.shape[:2]
+        scale = max(extent[0] / (w - 1), extent[1] / (h - 1))
+    if scale > max_magnification:
+        need_w = max(w, math.ceil(extent[0] / max_magnification) + 1)
+        need_h = max(h, math.ceil(extent[1] / max_magnification) + 1)
+        pad_w, pad_h = need_w - w, need_h - h
+        texture = np.pad(
+            texture,
+            ((pad_h // 2, pad_h - pad_h // 2), (pad_w // 2, pad_w - pad_w // 2), (0, 0)),
+            mode="symmetric",
+        )
+        h, w = texture.shape[:2]
+        scale = max(extent[0] / (w - 1), extent[1] / (h - 1))
+    return texture, scale
+
+
 def textured_plane(
     texture: np.ndarray,
     camera: StereoCamera,
@@ -218,27 +247,7 @@ def textured_plane(
     coords = np.concatenate(coords) / footprint
     low, high = coords.min(0) - margin, coords.max(0) + margin
     extent = high - low  # (along e1, along e2), in pixels of that footprint
-    texture = np.asarray(texture, dtype=np.float32)
-    h, w = texture.shape[:2]
-    scale = max(extent[0] / (w - 1), extent[1] / (h - 1))
-    if scale < min_magnification:
-        shrink = scale / min_magnification
-        new_w = max(2, round((w - 1) * shrink) + 1)
-        new_h = max(2, round((h - 1) * shrink) + 1)
-        texture = _resize(texture, new_w, new_h)
-        h, w = texture.shape[:2]
-        scale = max(extent[0] / (w - 1), extent[1] / (h - 1))
-    if scale > max_magnification:
-        need_w = max(w, math.ceil(extent[0] / max_magnification) + 1)
-        need_h = max(h, math.ceil(extent[1] / max_magnification) + 1)
-        pad_w, pad_h = need_w - w, need_h - h
-        texture = np.pad(
-            texture,
-            ((pad_h // 2, pad_h - pad_h // 2), (pad_w // 2, pad_w - pad_w // 2), (0, 0)),
-            mode="symmetric",
-        )
-        h, w = texture.shape[:2]
-        scale = max(extent[0] / (w - 1), extent[1] / (h - 1))
+    texture, scale = _fit_texture(texture, extent, min_magnification, max_magnification)
     middle = (low + high) / 2 * footprint
     return PlanarObject(
         normal=normal,
@@ -287,7 +296,10 @@ def planar_setup(
         the scenes cycle through them in order.
     """
     if name not in PLANAR_MOTIONS:
-        raise ValueError(f"unknown planar scene {name!r}, expected one of {_NAMES}")
+        raise InputError(
+            f"unknown planar scene {name!r}, expected one of {_NAMES}",
+            parameter="scenes",
+        )
     motion = PLANAR_MOTIONS[name]
     if texture is None:
         texture = TEXTURE_NAMES[list(PLANAR_MOTIONS).index(name) % len(TEXTURE_NAMES)]
@@ -462,7 +474,10 @@ def write_planar_set(
     names = list(PLANAR_MOTIONS) if names is None else list(names)
     unknown = [n for n in names if n not in PLANAR_MOTIONS]
     if unknown:
-        raise ValueError(f"unknown planar scene {unknown[0]!r}, expected one of {_NAMES}")
+        raise InputError(
+            f"unknown planar scene {unknown[0]!r}, expected one of {_NAMES}",
+            parameter="scenes",
+        )
     paths = []
     for name in names:
         if progress is not None:
