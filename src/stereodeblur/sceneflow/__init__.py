@@ -4,6 +4,7 @@ The estimator and the file functions are imported on first use, so that
 ``from stereodeblur.sceneflow import SceneFlow`` stays light.
 """
 
+from .._lazy import lazy_exports
 from .model import SceneFlow
 
 _LAZY = {
@@ -21,9 +22,4 @@ _LAZY = {
 __all__ = ["SceneFlow", *_LAZY]
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
