@@ -1,10 +1,12 @@
 """Bad inputs found by hand (issue 15): each a one-line error naming the file or value and the
 accepted range, exit code 2 from the command line, nothing else on the terminal."""
 
+import hashlib
 import json
 import re
 import struct
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -45,8 +47,23 @@ def _cli(capfd, *argv):
     return code, lines
 
 
+def _tree_digest(root: Path) -> str:
+    """Names and bytes of every file under ``root``."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        digest.update(str(path.relative_to(root)).encode())
+        if path.is_file() and not path.is_symlink():
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def _assert_refused(capfd, fragments, *argv, output=None):
+    """Exit 2, one line with every fragment, and (with ``output``) nothing written or changed
+    in the folder that holds the output and the inputs."""
+    before = None if output is None else _tree_digest(output.parent)
     code, lines = _cli(capfd, *argv)
+    if before is not None:
+        assert _tree_digest(output.parent) == before
     assert code == 2, lines
     assert len(lines) == 1 and lines[0].startswith("stereodeblur: error: "), lines
     for fragment in fragments:
@@ -138,6 +155,9 @@ def test_still_image_as_video_is_refused(image, videos, tmp_path, capfd):
     assert text.startswith(f"{path} is a still image") and "not a video" in text
     assert "frames per second" not in text
     assert capfd.readouterr().err == ""
+    out = tmp_path / "out"
+    argv = ["deblur", left, path, "--calib", calib, "--exposure", "0.01", "-o", out]
+    _assert_refused(capfd, [f"{path} is a still image"], *argv, output=out)
 
 
 def test_videos_of_8_and_4_frames_use_4_with_a_warning(videos, tmp_path):
@@ -181,7 +201,7 @@ def _bad_K(change):
 
 
 @pytest.mark.parametrize("case", list(BAD_INTRINSICS))
-def test_one_rule_for_intrinsics_in_camera_json_yaml_and_kitti(case, videos, tmp_path):
+def test_one_rule_for_intrinsics_in_camera_json_yaml_and_kitti(case, videos, tmp_path, capfd):
     change, message = BAD_INTRINSICS[case]
     bad = _bad_K(change)
     # camera.json of a scene folder (its frames give the size)
@@ -192,6 +212,8 @@ def test_one_rule_for_intrinsics_in_camera_json_yaml_and_kitti(case, videos, tmp
     with pytest.raises(InputError) as error:
         open_scene(scene)
     assert _one_line(error) == f"{scene / 'camera.json'}: {message} for 32x24 images"
+    out = tmp_path / "out"
+    _assert_refused(capfd, [message], "deblur", scene, "-o", out, output=out)
     # the same camera as a camera.json calibration of a video pair
     left, right, _ = videos
     with pytest.raises(InputError, match=re.escape(f"{scene / 'camera.json'}: {message}")):
@@ -202,6 +224,8 @@ def test_one_rule_for_intrinsics_in_camera_json_yaml_and_kitti(case, videos, tmp
     with pytest.raises(InputError) as error:
         open_source([left, right], calib=yaml, exposure=0.01)
     assert _one_line(error) == f"{yaml}: {message} for 32x24 images"
+    argv = ["deblur", left, right, "--calib", yaml, "--exposure", "0.01", "-o", out]
+    _assert_refused(capfd, [str(yaml), message], *argv, output=out)
     # as a KITTI calibration
     kitti = write_kitti_2015(tmp_path / "kitti", _frames(5, 2), _frames(6, 2), bad, 0.5)
     with pytest.raises(InputError, match=re.escape(f"P_rect_02: {message}")):
