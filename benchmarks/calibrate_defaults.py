@@ -47,6 +47,8 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 PAPER = {"alpha": 1e-3, "boundary_weights": "none"}
 FRAME = 1
@@ -54,6 +56,7 @@ MOTIONS = ("gt", "sceneflow")
 KINDS = ("family", "street")
 WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
 """dB limits of the checks (issue 12)."""
+FEATURES_VERSION = " features 1"
 
 
 @dataclass(frozen=True)
@@ -155,6 +158,76 @@ def run_column(scene, column: Column, motion, truth) -> dict:
     }
 
 
+HIGH_FREQUENCY = 0.25
+"""Cycles per pixel above which the blurred frame's spectrum counts as fine texture."""
+TEXTURE_LEVEL = 0.01
+"""Local RMS of the noise mask's response (intensity units) that counts as strong texture."""
+UNTRUSTED = 0.5
+"""Trust below which a pixel counts as untrusted."""
+
+
+def spectral_share(grey: np.ndarray, cutoff: float = HIGH_FREQUENCY) -> float:
+    """Share of the (Hann-windowed, mean-free) power spectrum above ``cutoff`` cycles/px."""
+    H, W = grey.shape
+    window = np.outer(np.hanning(H), np.hanning(W))
+    power = np.abs(np.fft.rfft2((grey - grey.mean()) * window)) ** 2
+    fy = np.fft.fftfreq(H)[:, None]
+    fx = np.fft.rfftfreq(W)[None, :]
+    radius = np.hypot(fy, fx)
+    total = power[radius > 0].sum()
+    return float(power[radius > cutoff].sum() / total) if total > 0 else 0.0
+
+
+def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
+    """Run-time features of the blurred frame and its motion (``benchmarks/alpha_study.py``).
+
+    What the pipeline knows before solving: the noise estimate, the blur length
+    (percentiles of the flow length to the neighbour times the duty cycle), the share of
+    fine texture, the shares of untrusted pixels and of pixels whose path leaves the view,
+    and the alpha the default rule picks.
+    """
+    import warnings
+
+    from scipy import ndimage
+
+    from stereodeblur.deconv.noise import _MASK, estimate_noise_sigma
+    from stereodeblur.deconv.trust import leaves_view
+    from stereodeblur.pipeline.operator import view_operator
+    from stereodeblur.pipeline.weights import data_terms
+    from stereodeblur.pipeline.window import read_window
+
+    settings = Column("default", source).settings()
+    known = {("left", FRAME): blurred}
+    window = read_window(scene, FRAME, ("left",), settings, motion=False, known=known)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        operator = view_operator(motion, window.exposure, settings)
+        terms = data_terms(scene, window, "left", operator, settings)
+    duty = float(window.exposure.duty_cycle)
+    flow = operator.motion.flow_forward
+    length = np.hypot(flow[..., 0], flow[..., 1]) * duty
+    grey = np.asarray(blurred, np.float64)
+    grey = grey.mean(axis=2) if grey.ndim == 3 else grey
+    response = ndimage.correlate(grey, _MASK, mode="reflect") / 6.0
+    local = np.sqrt(np.maximum(ndimage.uniform_filter(response**2, 5), 0.0))
+    outside = leaves_view(operator.motion.flow_forward, operator.motion.flow_backward, duty)
+    trust = terms.trust if terms.trust is not None else np.ones_like(grey)
+    return {
+        "noise_sigma": estimate_noise_sigma(blurred),
+        "duty_cycle": duty,
+        "blur_p50": float(np.percentile(length, 50)),
+        "blur_p95": float(np.percentile(length, 95)),
+        "blur_max": float(length.max()),
+        "hf_share": spectral_share(grey),
+        "texture_share": float(np.mean(local > TEXTURE_LEVEL)),
+        "gradient_rms": float(np.sqrt(np.mean(np.sum(np.square(np.gradient(grey)), 0)))),
+        "untrusted_share": float(np.mean(trust < UNTRUSTED)),
+        "outside_share": float(np.mean(outside)),
+        "auto_alpha": float(terms.alpha),
+        "saturated_share": float(np.mean(grey > 0.98)),
+    }
+
+
 def run_scene(task) -> dict:
     """Every column on one scene (rendered first if needed), reusing cached results."""
     import warnings
@@ -195,6 +268,21 @@ def run_scene(task) -> dict:
             path.write_text(json.dumps(data, indent=1), encoding="utf-8")
             _log(f"{root.name} {name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
         results[name] = {k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")}
+    features = {}
+    for source in motions:
+        path = cache / f"{source}_features.json"
+        signature = repr(Column("default", source).settings()) + FEATURES_VERSION
+        data = _cached(path, signature)
+        if data is None:
+            if source not in motion_cache:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    settings = Column("default", source).settings()
+                    motion_cache[source] = frame_motion(scene, FRAME, "left", settings, blurred)
+            data = frame_features(scene, motion_cache[source], source, blurred)
+            data["signature"] = signature
+            path.write_text(json.dumps(data, indent=1), encoding="utf-8")
+        features[source] = {k: v for k, v in data.items() if k != "signature"}
     return {
         "scene": root.name,
         "kind": kind,
@@ -209,6 +297,7 @@ def run_scene(task) -> dict:
             "ssim": ssim(blurred, truth, border=border),
         },
         "columns": results,
+        "features": features,
         "render_seconds": render_seconds,
         "motion_seconds": motion_seconds,
     }
