@@ -79,7 +79,6 @@ def select_frames(text: str | None, num_frames: int):
 
 def run(args: argparse.Namespace) -> int:
     from ..io.outputs import check_output
-    from .motion_check import check_gt_motion
 
     settings = settings_from_arguments(args)
     spec = source_spec(args)
@@ -88,9 +87,6 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.output, input_paths(spec), subfolders=written, command="deblur")
     frames = None if args.frames is None else select_frames(args.frames, source.num_frames)
     views = views_of(args)
-    if settings.motion_source == "gt":
-        indices = range(source.num_frames) if frames is None else frames
-        check_gt_motion(source, indices, settings, views)
     if args.sceneflow:
         return _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views)
     return _deblur_clip(args, settings, spec, frames, views, shown=source.warnings)

@@ -10,10 +10,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import InputError
 from ..geometry.camera import VIEWS
+from ..io.gt_checks import check_gt_file
 
 
 def check_arguments(views, workers, scheduler, settings, point_cloud: bool) -> tuple[str, ...]:
@@ -64,32 +63,6 @@ def gt_files(scene, index: int, settings, views=VIEWS) -> list[Path]:
     return [Path(p) for p in gt_needs(scene, index, settings, views=views)]
 
 
-def check_gt_known(path: Path) -> None:
-    """An InputError when the ground-truth disparity or flow at ``path`` is unknown everywhere.
-
-    Unknown disparity is non-finite or not positive; unknown flow is non-finite (or of 1e9
-    pixels and more, the FLO format's "unknown").
-    """
-    from ..io.formats import read_flo, read_pfm
-
-    suffix = path.suffix.lower()
-    with np.errstate(invalid="ignore"):
-        if suffix == ".pfm":
-            values = read_pfm(path)
-            if not np.any(np.isfinite(values) & (values > 0)):
-                raise InputError(
-                    f"{path}: the ground-truth disparity is unknown everywhere (no finite value "
-                    "above 0); ground-truth motion needs a known disparity"
-                )
-        elif suffix == ".flo":
-            flow = read_flo(path)
-            if not np.any(np.all(np.isfinite(flow) & (np.abs(flow) < 1e9), axis=-1)):
-                raise InputError(
-                    f"{path}: the ground-truth flow is unknown everywhere (no finite vector); "
-                    "ground-truth motion needs a known flow"
-                )
-
-
 def check_gt_files(scene, frames: list[int], settings, views) -> None:
     """An InputError naming the first ground-truth file (e.g. a gt/mixed mask) that
     ``frames`` need and that is missing."""
@@ -120,5 +93,5 @@ def select_gt_frames(scene, frames: list[int], explicit: bool, settings, views=V
         index, path = first_missing
         raise InputError(f"ground-truth motion: frame {index} needs {path}, which is missing")
     for path in sorted({p for index in ok for p in gt_files(scene, index, settings, views)}):
-        check_gt_known(path)
+        check_gt_file(path)
     return ok, missing

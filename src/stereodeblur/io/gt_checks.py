@@ -1,8 +1,7 @@
-"""Ground-truth motion checked before a ``--motion-source gt`` run starts.
+"""Ground-truth motion that a run can use: checked once, before the run starts.
 
 Ground truth that is entirely unknown, or that describes a motion no frame can show, gives
-no deblurring or a result worse than the input without any error downstream. Every gt
-file the run will read (:func:`stereodeblur.pipeline.gt_needs`) is checked once, up front:
+no deblurring or a result worse than the input without any error downstream:
 
 - disparity: some pixel known (finite and > 0), and every known value in
   ``[MIN_DISPARITY, width]`` pixels: a disparity above the frame's width puts the point
@@ -16,7 +15,6 @@ file the run will read (:func:`stereodeblur.pipeline.gt_needs`) is checked once,
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +31,10 @@ def check_disparity(disparity: np.ndarray, path) -> None:
     with np.errstate(invalid="ignore"):
         known = disparity[np.isfinite(disparity) & (disparity > 0)]
     if known.size == 0:
-        raise InputError(f"{path}: no known disparity (every value is NaN or <= 0)")
+        raise InputError(
+            f"{path}: no known disparity, the ground truth is unknown everywhere "
+            "(every value is NaN or <= 0)"
+        )
     low, high = float(known.min()), float(known.max())
     if low < MIN_DISPARITY or high > width:
         raise InputError(
@@ -48,7 +49,10 @@ def check_flow(flow: np.ndarray, path) -> None:
     with np.errstate(invalid="ignore"):
         known = np.all(np.isfinite(flow) & (np.abs(flow) < FLO_UNKNOWN), axis=-1)
     if not known.any():
-        raise InputError(f"{path}: no known flow (every value is unknown)")
+        raise InputError(
+            f"{path}: no known flow, the ground truth is unknown everywhere "
+            f"(every vector is non-finite or {FLO_UNKNOWN:g} px and more)"
+        )
     longest = float(np.linalg.norm(flow[known].astype(np.float64), axis=-1).max())
     diagonal = math.hypot(width, height)
     if longest > diagonal:
@@ -58,21 +62,12 @@ def check_flow(flow: np.ndarray, path) -> None:
         )
 
 
-def check_gt_motion(scene, indices: Iterable[int], settings, views) -> None:
-    """Check every gt disparity and flow file that deblurring ``indices`` reads.
+def check_gt_file(path: Path) -> None:
+    """Check a gt disparity (``.pfm``) or flow (``.flo``) file; other files pass."""
+    from .formats import read_flo, read_pfm
 
-    Missing files are left to the run, which names them (or skips their frames).
-    """
-    from ..io.formats import read_flo, read_pfm
-    from ..pipeline import gt_needs
-
-    paths = {
-        Path(p): None for index in indices for p in gt_needs(scene, index, settings, views=views)
-    }
-    for path in paths:
-        if not path.is_file():
-            continue
-        if path.suffix.lower() == ".pfm":
-            check_disparity(read_pfm(path), path)
-        elif path.suffix.lower() == ".flo":
-            check_flow(read_flo(path), path)
+    suffix = Path(path).suffix.lower()
+    if suffix == ".pfm":
+        check_disparity(read_pfm(path), path)
+    elif suffix == ".flo":
+        check_flow(read_flo(path), path)
