@@ -336,3 +336,21 @@ def test_quiet_stderr_restores_fd_2_after_concurrent_use():
     assert len(silenced) == 120 and all(silenced)
     after = os.fstat(2)
     assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)
+
+
+@pytest.mark.parametrize(
+    "key, value, message",
+    [
+        ("baseline", 1e306, "baseline must be a number in [1e-06, 1e+06] scene units"),
+        ("baseline", 1e-9, "baseline must be a number in [1e-06, 1e+06] scene units"),
+        ("frame_rate", 1e300, "frame_rate must be a number in (0, 1e+06] per second"),
+    ],
+)
+def test_absurd_baseline_or_frame_rate_in_camera_json(key, value, message, tmp_path, capfd):
+    scene = write_tiny_scene(tmp_path / "scene", num_frames=2, size=SIZE, gt=False)
+    data = json.loads((scene / "camera.json").read_text())
+    data[key] = value
+    (scene / "camera.json").write_text(json.dumps(data))
+    out = tmp_path / "out"
+    _assert_refused(capfd, [str(scene / "camera.json"), message], "deblur", scene, "-o", out,
+                    output=out)  # fmt: skip

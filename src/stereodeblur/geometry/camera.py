@@ -21,6 +21,12 @@ VIEWS = ("left", "right")
 
 _ROWS = 16384  # rows per matrix product: small enough for BLAS to stay on one thread
 
+# A baseline beyond these bounds overflows depths and disparities downstream (metres: 1 um to
+# 1000 km; in millimetres: 1 nm to 1 km).
+BASELINE_RANGE = (1e-6, 1e6)
+# Faster than any camera that blurs (high-speed cameras reach about 1e5 frames per second).
+MAX_FRAME_RATE = 1e6
+
 
 def apply_matrix(M: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``v @ M.T``: ``M v`` for every 3-vector along the last axis of ``v``, shape (..., 3).
@@ -61,8 +67,12 @@ class StereoCamera:
         if abs(K[1, 0]) > 0:
             raise ValueError(f"K[1][0] must be 0, got {K[1, 0]}")
         b = float(self.baseline)
-        if not np.isfinite(b) or b <= 0:
-            raise ValueError(f"baseline must be a positive number, got {self.baseline!r}")
+        low, high = BASELINE_RANGE
+        if not np.isfinite(b) or not low <= b <= high:
+            raise ValueError(
+                f"baseline must be a number in [{low:g}, {high:g}] scene units, "
+                f"got {self.baseline!r}"
+            )
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "baseline", b)
 
@@ -111,8 +121,11 @@ class Exposure:
 
     def __post_init__(self):
         fr, ex = float(self.frame_rate), float(self.exposure)
-        if not np.isfinite(fr) or fr <= 0:
-            raise ValueError(f"frame_rate must be a positive number, got {self.frame_rate!r}")
+        if not np.isfinite(fr) or not 0 < fr <= MAX_FRAME_RATE:
+            raise ValueError(
+                f"frame_rate must be a number in (0, {MAX_FRAME_RATE:g}] per second, "
+                f"got {self.frame_rate!r}"
+            )
         if not np.isfinite(ex) or ex < 0:
             raise ValueError(f"exposure must be a non-negative number, got {self.exposure!r}")
         if ex > 1.0 / fr * (1 + 1e-9):
