@@ -4,27 +4,20 @@ Run from the repository root, after ``benchmarks/calibrate_defaults.py`` (train 
 
     python benchmarks/alpha_study.py benchmarks/results/calibrate_defaults_train_320x240.json
 
-Reads the protocol's JSON rows (per scene: PSNR of every alpha of the grid
-{1e-5, ..., 3e-3} with the default boundary handling, of the default and of the paper's
-settings, per motion source, and ``features``: what the pipeline knows before solving, from
-:func:`calibrate_defaults.frame_features`). Every (scene, motion source) is one case.
-
-A rule maps a case's features to an alpha; its PSNR on a case is the measured PSNR curve
-over the grid interpolated linearly in ``log10(alpha)`` (alphas outside the grid are
-clipped to it). That interpolation is an estimate between measured points, so the chosen
-rule must be run again before it becomes a default. Candidate rules are fitted and scored
-by leave-one-scene-out cross-validation (both motion sources of the held-out scene are left
-out of the fit), and reported with issue 12's checks per motion source: mean and worst loss
-against the best grid alpha, worst loss against the paper's settings (alpha 0.001,
-``boundary_weights='none'``). The current default (``'auto'``, its measured PSNR) and the
-fixed 1e-3 and 3e-4 are scored the same way, without fitting.
-
-**Training split only**: the script refuses rows of the test split.
+Every (scene, motion source) of the protocol's JSON is a case: the PSNR of each alpha of
+the grid (default boundary handling), of the default and of the paper's settings, and the
+run-time ``features`` (``calibrate_defaults.frame_features``). A rule's PSNR on a case is
+the measured curve interpolated linearly in log10(alpha), clipped to the grid (an
+estimate: run a chosen rule again before making it a default). Candidates are fitted and
+scored by leave-one-scene-out cross-validation and reported with issue 12's checks per
+motion source, beside the current default ('auto', measured) and fixed 1e-3 and 3e-4.
+**Training split only**: rows of the test split are refused.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -37,20 +30,20 @@ import numpy as np
 GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 LOG_GRID = np.log10(GRID)
 SOURCES = ("gt", "sceneflow")
-WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
-FIT_C = np.arange(-7.0, -1.0 + 1e-9, 0.05)
-"""log10 of the constants the grid searches try."""
-FIT_P = (-1.5, -1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0)
-"""Powers of the blur length the grid searches try."""
-PAPER_ALPHA = 1e-3
-"""The paper's alpha (Eq. 6)."""
-FINE = np.arange(LOG_GRID[0], LOG_GRID[-1] + 1e-9, 0.02)
-"""log10(alpha) steps of the PSNR tables the fits look up."""
-NOISE_FLOOR = 1e-4
-"""Noise estimates below this count as this (log features)."""
+WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5  # dB, issue 12's checks
+PAPER_ALPHA = 1e-3  # the paper's alpha (Eq. 6)
+FIT_C = np.arange(-7.0, -1.0 + 1e-9, 0.05)  # log10 of the constants the fits try
+FIT_P = (-1.5, -1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0)  # powers of the blur length
+FINE = np.arange(LOG_GRID[0], LOG_GRID[-1] + 1e-9, 0.02)  # log10(alpha) of the PSNR tables
+FEATURES = "noise_sigma blur_p95 hf_share texture_share untrusted_share outside_share \
+gradient_rms saturated_share auto_alpha"
+"""The features whose rank correlation with the best alpha the report shows."""
+NOISE_POWERS = (1.0, 1.5, 1.9, 2.0)
+"""Powers of sigma the refits try: from linear to the MAP scaling alpha ~ sigma^2."""
+NOISE_FLOOR = 1e-4  # noise estimates below this count as this (log features)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Case:
     """One scene and motion source: measured PSNRs and run-time features."""
 
@@ -98,16 +91,10 @@ def load_cases(paths) -> list[Case]:
                 if f"{source}/default" not in cols or source not in row["features"]:
                     continue
                 curve = np.array([cols[f"{source}/alpha={a:g}"]["psnr"] for a in GRID])
+                d, paper = cols[f"{source}/default"], cols[f"{source}/paper"]["psnr"]
+                features = row["features"][source]
                 cases.append(
-                    Case(
-                        row["scene"],
-                        source,
-                        curve,
-                        cols[f"{source}/default"]["psnr"],
-                        cols[f"{source}/default"]["alpha"],
-                        cols[f"{source}/paper"]["psnr"],
-                        row["features"][source],
-                    )
+                    Case(row["scene"], source, curve, d["psnr"], d["alpha"], paper, features)
                 )
     return cases
 
@@ -136,22 +123,16 @@ def design(case: Case, names) -> np.ndarray:
     return np.array([1.0] + [values[n] for n in names])
 
 
-_TABLES: dict = {}
-
-
-def _tables(cases) -> np.ndarray:
-    key = tuple(id(c) for c in cases)
-    if key not in _TABLES:
-        _TABLES.clear() if len(_TABLES) > 256 else None
-        _TABLES[key] = np.stack([c.table for c in cases])
-    return _TABLES[key]
+@functools.lru_cache(maxsize=64)
+def _tables(cases: tuple) -> np.ndarray:
+    return np.stack([c.table for c in cases])
 
 
 def objective(cases, alphas) -> float:
     """Mean loss to the best grid alpha plus the mean excess over 0.5 dB below alpha 1e-3
     (same boundary handling: the part of the paper check an alpha rule can act on), on the
     PSNR tables (alphas rounded to 0.02 decades)."""
-    table = _tables(cases)
+    table = _tables(tuple(cases))
     logs = np.log10(np.clip(np.asarray(alphas, np.float64), GRID[0], GRID[-1]))
     idx = np.clip(np.rint((logs - FINE[0]) / 0.02).astype(int), 0, len(FINE) - 1)
     psnr = table[np.arange(len(cases)), idx]
@@ -170,91 +151,49 @@ class Rule:
     alpha: object
 
 
-def _clip(alpha: float) -> float:
-    return float(np.clip(alpha, GRID[0], GRID[-1]))
-
-
 def auto_alpha(case: Case) -> float:
     """The current default's alpha: the noise rule raised by the trust rule."""
     return case.features["auto_alpha"]
 
 
-def no_base(case: Case) -> float:
-    return GRID[0]
-
-
-def _blur_power(cases, base, by_source: bool, powers=FIT_P):
-    """``max(base, c * blur_p95^p)``, c per motion source if ``by_source``."""
-    floor = np.array([base(c) for c in cases])
-    blur = np.array([max(c.features["blur_p95"], 1.0) for c in cases])
-    groups = SOURCES if by_source else (None,)
-    best_p, best_score, params = None, math.inf, {}
-    for p in powers:
-        found, total = {}, 0.0
-        for g in groups:
-            idx = [i for i, c in enumerate(cases) if g is None or c.source == g]
-            if not idx:
-                found[g] = 1e-3
-                continue
-            sub = [cases[i] for i in idx]
-            s = [
-                objective(sub, np.maximum(floor[idx], 10**c * blur[idx] ** p)) * len(idx)
-                for c in FIT_C
-            ]
-            found[g] = 10 ** FIT_C[int(np.argmin(s))]
-            total += min(s)
-        if total < best_score:
-            best_p, best_score, params = p, total, found
-    return best_p, params
-
-
-def blur_rule(base, by_source: bool, powers=FIT_P):
-    """Fit and alpha of ``max(base, c * blur95^p)``."""
-
-    def fit(cases):
-        return _blur_power(cases, base, by_source, powers)
-
-    def alpha(case, params):
-        p, c = params
-        scale = c.get(case.source, c.get(None))
-        return _clip(max(base(case), scale * max(case.features["blur_p95"], 1.0) ** p))
-
-    return fit, alpha
-
-
-def _sigma(case: Case) -> float:
-    return max(case.features["noise_sigma"], NOISE_FLOOR / 10)
-
-
-def _terms(cases, params):
-    """Per case the three terms of :func:`three_term_rule`."""
-    q, c_n, c_u, c_b, p = params
-    sigma = np.array([_sigma(c) for c in cases])
+@functools.lru_cache(maxsize=64)
+def _columns(cases: tuple, base) -> tuple:
+    """Noise sigma, untrusted share, blur95 and ``base`` of ``cases`` as arrays."""
+    sigma = np.array([max(c.features["noise_sigma"], NOISE_FLOOR / 10) for c in cases])
     untrusted = np.array([c.features["untrusted_share"] for c in cases])
     blur = np.array([max(c.features["blur_p95"], 1.0) for c in cases])
-    return c_n * sigma**q, c_u * untrusted, c_b * blur**p
+    return sigma, untrusted, blur, np.array([GRID[0] if base is None else base(c) for c in cases])
 
 
-def three_term_rule(use_untrusted: bool, use_blur: bool):
-    """``max(c_n sigma^q, c_u untrusted_share, c_b blur95^p)``, clipped to the grid, fitted
-    term by term (coordinate search, three rounds); unused terms stay at zero."""
-    powers_q, powers_p = (0.5, 0.75, 1.0, 1.5, 1.9), (-1.5, -1.0, -0.5, 0.0)
+def _terms(cases, params, base):
+    """Per case the terms of :func:`max_rule`."""
+    q, c_n, c_u, c_b, p = params
+    sigma, untrusted, blur, floor = _columns(tuple(cases), base)
+    return floor, c_n * sigma**q, c_u * untrusted, c_b * blur**p
+
+
+def max_rule(base=None, *, noise=False, untrusted=False, blur=None):
+    """``max(base, c_n sigma^q, c_u untrusted_share, c_b blur95^p)`` clipped to the grid.
+
+    Only the terms asked for are fitted (coordinate search over each term's scale and
+    power, three rounds), the others stay at zero; ``blur``: the powers p to try.
+    """
+    slots = [(0, 1, NOISE_POWERS, FIT_C)] if noise else []
+    if untrusted:
+        slots.append((None, 2, (None,), np.arange(-4.0, 1e-9, 0.05)))
+    if blur is not None:
+        slots.append((4, 3, blur, FIT_C))
 
     def alphas(cases, params):
-        return np.clip(np.maximum.reduce(_terms(cases, params)), GRID[0], GRID[-1])
+        return np.clip(np.maximum.reduce(_terms(cases, params, base)), GRID[0], GRID[-1])
 
     def fit(cases):
-        params = [1.9, 2.0, 0.0, 0.0, 0.0]
-        slots = [(0, 1, powers_q)]
-        if use_untrusted:
-            slots.append((None, 2, (None,)))
-        if use_blur:
-            slots.append((4, 3, powers_p))
+        params = [1.9, 2.0 if noise else 0.0, 0.0, 0.0, 0.0]  # from the current rule
         for _ in range(3 if len(slots) > 1 else 1):
-            for power_slot, scale_slot, powers in slots:
+            for power_slot, scale_slot, powers, scales in slots:
                 best = (math.inf, None)
                 for power in powers:
-                    for c in FIT_C if scale_slot != 2 else np.arange(-4.0, 0.0 + 1e-9, 0.05):
+                    for c in scales:
                         trial = list(params)
                         if power_slot is not None:
                             trial[power_slot] = power
@@ -271,26 +210,6 @@ def three_term_rule(use_untrusted: bool, use_blur: bool):
     return fit, alpha
 
 
-def knn_rule(names, k: int):
-    """The grid alpha best on average over the ``k`` nearest training cases (standardised
-    features ``names``)."""
-
-    def fit(cases):
-        X = np.array([design(c, names)[1:] for c in cases])
-        return (X.mean(0), X.std(0) + 1e-9, X, cases)
-
-    def alpha(case, params):
-        mean, std, X, train = params
-        x = (design(case, names)[1:] - mean) / std
-        dist = np.linalg.norm((X - mean) / std - x, axis=1)
-        near = [train[i] for i in np.argsort(dist)[:k]]
-        logs = np.arange(LOG_GRID[0], LOG_GRID[-1] + 1e-9, 0.05)
-        total = [sum(c.psnr_at(10**g) - c.best for c in near) for g in logs]
-        return _clip(10 ** float(logs[int(np.argmax(total))]))
-
-    return fit, alpha
-
-
 def _loglinear(names, direct: bool):
     """Least squares of log10(best alpha) on ``names``; ``direct``: then refined on the
     objective by Nelder-Mead."""
@@ -303,66 +222,43 @@ def _loglinear(names, direct: bool):
             from scipy.optimize import minimize
 
             def score(b):
-                return objective(cases, [_clip(10 ** float(x @ b)) for x in X])
+                return objective(cases, np.clip(10 ** (X @ b), GRID[0], GRID[-1]))
 
             beta = minimize(score, beta, method="Nelder-Mead", options={"maxiter": 2000}).x
         return (beta,)
 
     def alpha(case, params):
-        return _clip(10 ** float(design(case, names) @ params[0]))
+        return float(np.clip(10 ** (design(case, names) @ params[0]), GRID[0], GRID[-1]))
 
     return fit, alpha
 
 
 def fine_best(case: Case) -> float:
-    """The alpha maximising the interpolated PSNR curve (0.01-decade steps)."""
-    logs = np.arange(LOG_GRID[0], LOG_GRID[-1] + 1e-9, 0.01)
-    values = np.interp(logs, LOG_GRID, case.curve)
-    return 10 ** float(logs[int(np.argmax(values))])
+    """The alpha maximising the interpolated PSNR curve (:data:`FINE` steps)."""
+    return 10 ** float(FINE[int(np.argmax(case.table))])
 
 
 def candidates() -> list[Rule]:
-    constant, source_constant = blur_rule(no_base, False, (0.0,)), blur_rule(no_base, True, (0.0,))
-    noise_floor, auto_floor = (
-        blur_rule(noise_alpha, False, (0.0,)),
-        blur_rule(auto_alpha, True, (0.0,)),
-    )
     rules = [
-        Rule("constant", "alpha = c", *constant),
-        Rule("constant per source", "alpha = c_source", *source_constant),
-        Rule("noise floor", "max(2 sigma^1.9, c)", *noise_floor),
-        Rule("noise | blur", "max(2 sigma^1.9, c * blur95^p)", *blur_rule(noise_alpha, False)),
-        Rule(
-            "noise | blur, per source",
-            "max(2 sigma^1.9, c_source * blur95^p)",
-            *blur_rule(noise_alpha, True),
-        ),
-        Rule("auto floor, per source", "max(auto, c_source)", *auto_floor),
-        Rule(
-            "auto | blur, per source",
-            "max(auto, c_source * blur95^p)",
-            *blur_rule(auto_alpha, True),
-        ),
-        Rule("noise rule refitted", "clip(c_n sigma^q)", *three_term_rule(False, False)),
+        Rule("constant", "alpha = c", *max_rule(blur=(0.0,))),
+        Rule("noise floor", "max(2 sigma^1.9, c)", *max_rule(noise_alpha, blur=(0.0,))),
+        Rule("noise | blur", "max(2 sigma^1.9, c * blur95^p)", *max_rule(noise_alpha, blur=FIT_P)),
+        Rule("auto | blur", "max(auto, c * blur95^p)", *max_rule(auto_alpha, blur=FIT_P)),
+        Rule("noise rule refitted", "c_n sigma^q", *max_rule(noise=True)),
         Rule(
             "noise | untrusted",
             "max(c_n sigma^q, c_u untrusted)",
-            *three_term_rule(True, False),
+            *max_rule(noise=True, untrusted=True),
         ),
         Rule(
             "noise | blur, refitted",
             "max(c_n sigma^q, c_b blur95^p)",
-            *three_term_rule(False, True),
+            *max_rule(noise=True, blur=FIT_P),
         ),
         Rule(
             "noise | untrusted | blur",
             "max(c_n sigma^q, c_u untrusted, c_b blur95^p)",
-            *three_term_rule(True, True),
-        ),
-        Rule(
-            "kNN (k=5)",
-            "best grid alpha of the 5 nearest cases in (log sigma, log blur95, estimated)",
-            *knn_rule(("log_sigma", "log_blur", "estimated"), 5),
+            *max_rule(noise=True, untrusted=True, blur=FIT_P),
         ),
     ]
     for names, direct in (
@@ -397,12 +293,9 @@ def cross_validate(rule: Rule, cases) -> list[float]:
 
 @dataclass(frozen=True)
 class Score:
-    """Issue 12's figures of one rule on the cases of one motion source (dB).
-
-    ``worst_below_paper``: against the paper's settings (alpha 0.001 and w = 1, the
-    issue's check); ``worst_below_alpha``: against alpha 0.001 with the default boundary
-    handling (the part an alpha rule can act on).
-    """
+    """Issue 12's figures of one rule on one motion source's cases (dB); ``below_paper``:
+    to the paper's settings (alpha 0.001, w = 1), ``below_alpha``: to alpha 0.001 with the
+    default boundary handling (what an alpha rule can act on)."""
 
     mean_below_best: float
     worst_below_best: float
@@ -439,47 +332,34 @@ def score(cases, psnrs, source: str) -> Score:
     )
 
 
+def _entry(name, formula, alphas, psnrs, params="") -> dict:
+    return dict(name=name, formula=formula, alphas=alphas, psnrs=psnrs, params=params)
+
+
 def evaluate(cases) -> list[dict]:
     """Every baseline and candidate: per-case alphas and PSNRs, scores per source."""
     out = [
-        {
-            "name": "current default ('auto')",
-            "formula": "max(2 sigma^1.9, trust rule), measured",
-            "alphas": [c.default_alpha for c in cases],
-            "psnrs": [c.default for c in cases],
-            "params": "",
-        }
+        _entry(
+            "current default ('auto')",
+            "max(2 sigma^1.9, trust rule), measured",
+            [c.default_alpha for c in cases],
+            [c.default for c in cases],
+        ),
+        _entry(
+            "oracle (best grid alpha)",
+            "per case, not a rule: the bound of any alpha rule",
+            [c.best_alpha for c in cases],
+            [c.best for c in cases],
+        ),
     ]
-    out.append(
-        {
-            "name": "oracle (best grid alpha)",
-            "formula": "per case, not a rule: the bound of any alpha rule",
-            "alphas": [c.best_alpha for c in cases],
-            "psnrs": [c.best for c in cases],
-            "params": "",
-        }
-    )
     for alpha in (1e-3, 3e-4):
-        out.append(
-            {
-                "name": f"fixed {alpha:g}",
-                "formula": f"alpha = {alpha:g} (grid, measured)",
-                "alphas": [alpha] * len(cases),
-                "psnrs": [c.psnr_at(alpha) for c in cases],
-                "params": "",
-            }
-        )
+        psnrs = [c.psnr_at(alpha) for c in cases]
+        out.append(_entry(f"fixed {alpha:g}", "grid, measured", [alpha] * len(cases), psnrs))
     for rule in candidates():
         alphas = cross_validate(rule, cases)
-        out.append(
-            {
-                "name": rule.name + " (CV)",
-                "formula": rule.formula,
-                "alphas": alphas,
-                "psnrs": [c.psnr_at(a) for c, a in zip(cases, alphas, strict=True)],
-                "params": describe(rule.fit(cases)),
-            }
-        )
+        psnrs = [c.psnr_at(a) for c, a in zip(cases, alphas, strict=True)]
+        params = describe(rule.fit(cases))
+        out.append(_entry(rule.name + " (CV)", rule.formula, alphas, psnrs, params))
     for entry in out:
         entry["scores"] = {s: score(cases, entry["psnrs"], s) for s in SOURCES}
     return out
@@ -487,35 +367,18 @@ def evaluate(cases) -> list[dict]:
 
 def describe(params) -> str:
     """The parameters fitted on all cases, short."""
-    if len(params) == 4:
-        return "(the training cases)"
-    if len(params) == 5:
-        q, c_n, c_u, c_b, p = params
-        return f"q={q:g}, c_n={c_n:.2g}, c_u={c_u:.2g}, c_b={c_b:.2g}, p={p:g}"
-    if len(params) == 2 and isinstance(params[1], dict):
-        p, c = params
-        scales = ", ".join(f"c{'' if k is None else '_' + k}={v:.2g}" for k, v in c.items())
-        return f"p={p:g}, {scales}"
     if isinstance(params[0], np.ndarray):
         return "beta=[" + ", ".join(f"{b:.3g}" for b in params[0]) + "]"
-    return f"c={params[0]:.2g}"
+    q, c_n, c_u, c_b, p = params
+    shown = (("q", q, c_n), ("c_n", c_n, c_n), ("c_u", c_u, c_u), ("c_b", c_b, c_b), ("p", p, c_b))
+    return ", ".join(f"{n}={v:.2g}" for n, v, used in shown if used)
 
 
 def correlations(cases) -> list[str]:
     """Spearman correlation of log10(best alpha) with each feature, per source."""
     from scipy.stats import spearmanr
 
-    names = [
-        "noise_sigma",
-        "blur_p95",
-        "hf_share",
-        "texture_share",
-        "untrusted_share",
-        "outside_share",
-        "gradient_rms",
-        "saturated_share",
-        "auto_alpha",
-    ]
+    names = FEATURES.split()
     lines = [
         "| feature | " + " | ".join(f"{s} rho" for s in SOURCES) + " |",
         "|---|" + "---|" * len(SOURCES),
@@ -549,16 +412,14 @@ def report(cases, entries, command: str, seconds: float) -> str:
         f"Command: `{command}`; {seconds:.0f} s. Data: the calibration protocol's train split "
         "(seeds 0-999; no test scene was rendered or looked at).",
         "",
-        "PSNR of a rule on a case: the measured PSNR over the alpha grid interpolated "
-        "linearly in log10(alpha) (an estimate between measured points; the default and "
-        "the fixed alphas are measured). Candidates: leave-one-scene-out cross-validation "
-        "(the held-out scene's gt and sceneflow cases both left out of the fit); "
-        "'params' are those fitted on all cases. Figures in dB: mean and worst loss to "
-        "the best grid alpha, worst loss to the paper's settings (alpha 0.001, w = 1), "
-        "worst loss to alpha 0.001 with the default boundary handling (what an alpha rule "
-        "can act on; fits penalise losses over 0.5 dB to it). "
-        f"Checks (issue 12): mean <= {WITHIN_BEST_MEAN}, worst <= {WITHIN_BEST_EACH}, "
-        f"below paper <= {BELOW_PAPER}; 'checks' counts the passed ones of six.",
+        "A rule's PSNR: the measured curve over the alpha grid interpolated in log10(alpha) "
+        "(the default and fixed alphas: measured). Candidates: leave-one-scene-out CV (both "
+        "motion sources of the held-out scene left out); params: fitted on all cases. dB: "
+        "mean and worst loss to the best grid alpha, worst loss to the paper's settings "
+        "(alpha 0.001, w = 1) and to alpha 0.001 with the default boundary handling (what an "
+        f"alpha rule can act on; fits penalise losses over {BELOW_PAPER} dB to it). Checks "
+        f"(issue 12): mean <= {WITHIN_BEST_MEAN}, worst <= {WITHIN_BEST_EACH}, below paper "
+        f"<= {BELOW_PAPER}; 'checks': how many of the six pass.",
         "",
         "| rule | formula | params (all cases) | gt mean | gt worst | gt below paper | "
         "gt below 1e-3 | sceneflow mean | sceneflow worst | sceneflow below paper | "
@@ -600,28 +461,13 @@ def report(cases, entries, command: str, seconds: float) -> str:
 
 
 def as_json(cases, entries) -> str:
-    data = {
-        "split": "train",
-        "cases": [
-            {
-                "scene": c.scene,
-                "source": c.source,
-                "curve": c.curve.tolist(),
-                "grid": GRID,
-                "default": c.default,
-                "default_alpha": c.default_alpha,
-                "paper": c.paper,
-                "features": c.features,
-            }
-            for c in cases
-        ],
-        "rules": [
-            {k: v for k, v in e.items() if k != "scores"}
-            | {"scores": {s: vars(x) for s, x in e["scores"].items()}}
-            for e in entries
-        ],
-    }
-    return json.dumps(data, indent=1) + "\n"
+    rules = [
+        {k: v for k, v in e.items() if k != "scores"}
+        | {"scores": {s: vars(x) for s, x in e["scores"].items()}}
+        for e in entries
+    ]
+    cases = [vars(c) | {"curve": c.curve.tolist(), "grid": GRID} for c in cases]
+    return json.dumps({"split": "train", "cases": cases, "rules": rules}, indent=1) + "\n"
 
 
 def main(argv=None) -> int:

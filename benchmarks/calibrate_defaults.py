@@ -158,12 +158,9 @@ def run_column(scene, column: Column, motion, truth) -> dict:
     }
 
 
-HIGH_FREQUENCY = 0.25
-"""Cycles per pixel above which the blurred frame's spectrum counts as fine texture."""
-TEXTURE_LEVEL = 0.01
-"""Local RMS of the noise mask's response (intensity units) that counts as strong texture."""
-UNTRUSTED = 0.5
-"""Trust below which a pixel counts as untrusted."""
+HIGH_FREQUENCY = 0.25  # cycles per pixel above which the spectrum counts as fine texture
+TEXTURE_LEVEL = 0.01  # local RMS of the noise mask's response that counts as strong texture
+UNTRUSTED = 0.5  # trust below which a pixel counts as untrusted
 
 
 def spectral_share(grey: np.ndarray, cutoff: float = HIGH_FREQUENCY) -> float:
@@ -179,13 +176,9 @@ def spectral_share(grey: np.ndarray, cutoff: float = HIGH_FREQUENCY) -> float:
 
 
 def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
-    """Run-time features of the blurred frame and its motion (``benchmarks/alpha_study.py``).
-
-    What the pipeline knows before solving: the noise estimate, the blur length
-    (percentiles of the flow length to the neighbour times the duty cycle), the share of
-    fine texture, the shares of untrusted pixels and of pixels whose path leaves the view,
-    and the alpha the default rule picks.
-    """
+    """What the pipeline knows before solving (``benchmarks/alpha_study.py``): noise
+    estimate, blur length (flow length to the neighbour times the duty cycle), fine texture,
+    untrusted pixels, paths leaving the view, the default's alpha."""
     import warnings
 
     from scipy import ndimage
