@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stereodeblur.io.outputs import atomic_write_text
+
 GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 LOG_GRID = np.log10(GRID)
 SOURCES = ("gt", "sceneflow")
@@ -488,10 +490,8 @@ def main(argv=None) -> int:
     command = "python benchmarks/alpha_study.py " + " ".join(sys.argv[1:])
     text = report(cases, entries, command, seconds)
     output = Path(args.output)
-    for path, content in ((output, text), (output.with_suffix(".json"), as_json(cases, entries))):
-        partial = path.with_name(path.name + ".partial")
-        partial.write_text(content, encoding="utf-8")
-        partial.replace(path)
+    atomic_write_text(output, text)
+    atomic_write_text(output.with_suffix(".json"), as_json(cases, entries))
     print(text)
     return 0
 

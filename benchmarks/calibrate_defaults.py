@@ -49,6 +49,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stereodeblur.io.outputs import atomic_write_text
+
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 PAPER = {"alpha": 1e-3, "boundary_weights": "none"}
 FRAME = 1
@@ -485,13 +487,8 @@ def main(argv=None) -> int:
     text = report(rows, args, seconds)
     output = Path(args.output)
     output.parent.mkdir(parents=True, exist_ok=True)
-    for path, content in (
-        (output, text),
-        (output.with_suffix(".json"), json.dumps(rows, indent=1) + "\n"),
-    ):
-        partial = path.with_name(path.name + ".partial")
-        partial.write_text(content, encoding="utf-8")
-        partial.replace(path)
+    atomic_write_text(output, text)
+    atomic_write_text(output.with_suffix(".json"), json.dumps(rows, indent=1) + "\n")
     print(text)
     return 0
 
