@@ -103,6 +103,18 @@ def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
     by_rows(_laplacian_rows, x, x, wx, wy, out, partial)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _weight(difference, floor, power, rho_floor, small):  # pragma: no cover - compiled
+    """Weight ``max(|c|, eps)^(p - 2)`` of one difference ``c`` and its ``h_eps(c)``
+    (``small``: the quadratic's scale and offset below ``eps``)."""
+    g = abs(difference)
+    g64 = np.float64(g)
+    if g >= floor:
+        rho = g**power
+        return rho, np.float64(rho) * g64 * g64
+    return rho_floor, small[0] * g64 * g64 + small[1]
+
+
 @numba.njit(cache=True, nogil=True)
 def _smoothness_rows(
     first, last, image, alpha, exponent, epsilon, wx, wy, partial
@@ -122,32 +134,22 @@ def _smoothness_rows(
     floor = np.float32(epsilon)
     scale = np.float32(alpha)
     rho_floor = floor**power
-    small_scale = 0.5 * exponent * epsilon ** (exponent - 2.0)
-    small_offset = (1.0 - 0.5 * exponent) * epsilon**exponent
+    small = (
+        0.5 * exponent * epsilon ** (exponent - 2.0),
+        (1.0 - 0.5 * exponent) * epsilon**exponent,
+    )
     for i in range(first, last):
         acc = 0.0
         for k in range(size - channels):  # x direction: right neighbour k + channels
-            g = abs(x2[i, k + channels] - x2[i, k])
-            g64 = np.float64(g)
-            if g >= floor:
-                rho = g**power
-                acc += np.float64(rho) * g64 * g64
-            else:
-                rho = rho_floor
-                acc += small_scale * g64 * g64 + small_offset
+            rho, h = _weight(x2[i, k + channels] - x2[i, k], floor, power, rho_floor, small)
+            acc += h
             wx2[i, k] = scale * rho
         for k in range(size - channels, size):
             wx2[i, k] = 0.0
         if i < rows - 1:
             for k in range(size):  # y direction: the next row
-                g = abs(x2[i + 1, k] - x2[i, k])
-                g64 = np.float64(g)
-                if g >= floor:
-                    rho = g**power
-                    acc += np.float64(rho) * g64 * g64
-                else:
-                    rho = rho_floor
-                    acc += small_scale * g64 * g64 + small_offset
+                rho, h = _weight(x2[i + 1, k] - x2[i, k], floor, power, rho_floor, small)
+                acc += h
                 wy2[i, k] = scale * rho
         else:
             for k in range(size):
