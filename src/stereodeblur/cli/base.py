@@ -55,6 +55,23 @@ def sizes(text: str) -> tuple[tuple[int, int], ...]:
     return tuple(size(part.strip()) for part in text.split(","))
 
 
+def add_size(parser: argparse.ArgumentParser, default: tuple[int, int]) -> None:
+    """``--size WIDTHxHEIGHT`` with a library default."""
+    parser.add_argument(
+        "--size", type=size, default=size_text(default), help="WIDTHxHEIGHT (default: %(default)s)"
+    )
+
+
+def add_sizes(parser: argparse.ArgumentParser, default) -> None:
+    """``--sizes W1xH1,W2xH2,...`` with a library default (a sequence of sizes)."""
+    parser.add_argument(
+        "--sizes",
+        type=sizes,
+        default=",".join(map(size_text, default)),
+        help="comma-separated WIDTHxHEIGHT (default: %(default)s)",
+    )
+
+
 def names(text: str) -> tuple[str, ...]:
     """Option type: comma-separated names (empty entries dropped)."""
     return tuple(part.strip() for part in text.split(",") if part.strip())

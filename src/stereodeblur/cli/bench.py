@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 from ..evaluation import paper_bench, planar_bench, sceneflow_bench
-from .base import Parser, add_quiet, integer, names, size, size_text, sizes
+from .base import Parser, add_quiet, add_size, add_sizes, integer, names
 from .printer import progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
 
@@ -34,12 +34,7 @@ def _add_planar(bench) -> None:
         description="PSNR/SSIM of displacement vs homography kernels from "
         "true motion on physically rendered planar scenes.",
     )
-    q.add_argument(
-        "--sizes",
-        type=sizes,
-        default=",".join(map(size_text, planar_bench.SIZES)),
-        help="comma-separated WIDTHxHEIGHT (default: %(default)s)",
-    )
+    add_sizes(q, planar_bench.SIZES)
     q.add_argument("--scenes", type=names, help="comma-separated motion names (default: all)")
     q.add_argument("--work", default="bench-planar", help="folder for rendered scenes and results")
     add_quiet(q)
@@ -53,12 +48,7 @@ def _add_sceneflow(bench) -> None:
         description="Scene-flow accuracy on the synthetic scenes (inputs blurred) and the "
         "Middlebury motorcycle pair as a static clip.",
     )
-    q.add_argument(
-        "--sizes",
-        type=sizes,
-        default=",".join(map(size_text, sceneflow_bench.SIZES)),
-        help="comma-separated WIDTHxHEIGHT (default: %(default)s)",
-    )
+    add_sizes(q, sceneflow_bench.SIZES)
     q.add_argument(
         "--scenes",
         type=names,
@@ -86,12 +76,7 @@ def _add_paper(bench) -> None:
         "3D homographies, paper full, ours full); PSNR, SSIM, AEP, ADE as Markdown and JSON, "
         "a figure per scene. Resumable: results are cached in the work folder.",
     )
-    q.add_argument(
-        "--size",
-        type=size,
-        default=size_text(paper_bench.SIZE),
-        help="WIDTHxHEIGHT (default: %(default)s)",
-    )
+    add_size(q, paper_bench.SIZE)
     q.add_argument(
         "--scenes",
         type=names,

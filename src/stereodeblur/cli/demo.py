@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..demo import DEMO_SIZE
-from .base import add_quiet, size, size_text
+from .base import add_quiet, add_size
 from .printer import progress_printer
 
 SUBFOLDERS = ("scene", "deblurred")
@@ -19,12 +19,7 @@ def add_parser(sub) -> None:
         "blurred | deblurred | sharp as a PNG; prints the PSNRs.",
     )
     p.add_argument("-o", "--output", default="stereodeblur-demo", help="output folder")
-    p.add_argument(
-        "--size",
-        type=size,
-        default=size_text(DEMO_SIZE),
-        help="WIDTHxHEIGHT (default: %(default)s)",
-    )
+    add_size(p, DEMO_SIZE)
     add_quiet(p)
     p.set_defaults(func=run)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..evaluation import kernels_figure
-from .base import size, size_text
+from .base import add_size
 
 
 def add_parser(sub) -> None:
@@ -16,12 +16,7 @@ def add_parser(sub) -> None:
         "from the 2D flow (displacement model), and their difference, side by side as a PNG.",
     )
     p.add_argument("-o", "--output", required=True, help="output PNG")
-    p.add_argument(
-        "--size",
-        type=size,
-        default=size_text(kernels_figure.SIZE),
-        help="WIDTHxHEIGHT (default: %(default)s)",
-    )
+    add_size(p, kernels_figure.SIZE)
     p.add_argument(
         "--yaw",
         type=float,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
-from .base import Parser, add_quiet, names, size
+from .base import Parser, add_quiet, add_size, names
 from .printer import progress_printer
 from .sources import add_source_options, input_paths, open_source, source_spec
 
@@ -23,9 +23,7 @@ def add_parser(sub) -> None:
         description="Textured planes under the paper's 3D motions.",
     )
     q.add_argument("output", help="folder to write one scene per motion into")
-    q.add_argument(
-        "--size", type=size, default="640x480", help="WIDTHxHEIGHT (default: %(default)s)"
-    )
+    add_size(q, (640, 480))
     q.add_argument("--scenes", type=names, help="comma-separated motion names (default: all)")
     add_quiet(q)
     q.set_defaults(func=run_planar)
@@ -37,9 +35,7 @@ def add_parser(sub) -> None:
         "(sigma = 0.01) as NAME_noisy.",
     )
     q.add_argument("output", help="folder to write one scene per name into")
-    q.add_argument(
-        "--size", type=size, default="640x480", help="WIDTHxHEIGHT (default: %(default)s)"
-    )
+    add_size(q, (640, 480))
     q.add_argument("--scenes", type=names, help="comma-separated scene names (default: all)")
     q.add_argument("--no-noisy", action="store_true", help="skip the NAME_noisy variants")
     add_quiet(q)
