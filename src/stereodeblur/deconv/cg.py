@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from numba import uint64 as U
 
 from stereodeblur.blur._kernels import run_ranges
 from stereodeblur.errors import InputError
@@ -45,49 +46,75 @@ class CGResult:
     num_iterations: int
 
 
-@numba.njit(cache=True)
+# The kernels index with unsigned integers (``U``) and ``error_model="numpy"`` so that LLVM can
+# drop negative-index wraparound checks and vectorise their inner loops. Keep index arithmetic
+# unsigned throughout: numba types ``uint64 + int64`` as float64.
+_JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
+# Partial sums per channel for an inner product: entry ``k`` of a flat row goes to lane
+# ``k % (LANES * C)``, which belongs to channel ``k % C``; the lanes are then added in order.
+LANES = 16
+
+
+@numba.njit(**_JIT)
+def lane_dots(a, b, acc):  # pragma: no cover - compiled
+    """``acc[k % L] += a[k] b[k]`` in float64 over flat rows ``a``, ``b`` (``L = acc.size``).
+
+    A fixed order of additions, independent of the thread count, that vectorises.
+    """
+    lanes = U(acc.size)
+    size = U(a.size)
+    blocks = size // lanes
+    for block in range(blocks):
+        base = block * lanes
+        for lane in range(lanes):
+            acc[lane] += np.float64(a[base + lane]) * np.float64(b[base + lane])
+    base = blocks * lanes
+    for lane in range(size - base):
+        acc[lane] += np.float64(a[base + lane]) * np.float64(b[base + lane])
+
+
+@numba.njit(**_JIT)
+def fold_lanes(acc, channels, partial, row):  # pragma: no cover - compiled
+    """``partial[row, c]`` = the sum of the lanes of channel ``c``, in order; clears ``acc``."""
+    for c in range(channels):
+        total = 0.0
+        for lane in range(c, acc.size, channels):
+            total += acc[lane]
+        partial[row, c] = total
+    acc[:] = 0.0
+
+
+@numba.njit(**_JIT)
 def row_channel_dots(a, b, channels, partial, row):  # pragma: no cover - compiled
     """``partial[row, c] = sum_k a[k] b[k]`` over the entries of channel ``c`` of a flat row."""
-    size = a.size
-    if channels == 3:
-        acc0 = 0.0
-        acc1 = 0.0
-        acc2 = 0.0
-        for k in range(0, size, 3):
-            acc0 += np.float64(a[k]) * np.float64(b[k])
-            acc1 += np.float64(a[k + 1]) * np.float64(b[k + 1])
-            acc2 += np.float64(a[k + 2]) * np.float64(b[k + 2])
-        partial[row, 0] = acc0
-        partial[row, 1] = acc1
-        partial[row, 2] = acc2
-    else:
-        for c in range(channels):
-            acc = 0.0
-            for k in range(c, size, channels):
-                acc += np.float64(a[k]) * np.float64(b[k])
-            partial[row, c] = acc
+    acc = np.zeros(LANES * channels)
+    lane_dots(a, b, acc)
+    fold_lanes(acc, channels, partial, row)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**_JIT)
 def _channel_dots_rows(first, last, a, b, partial):  # pragma: no cover - compiled
     """``partial[i, c] = sum_j a[i, j, c] * b[i, j, c]`` for rows ``first .. last - 1``."""
     rows, cols, channels = a.shape
     a2 = a.reshape(rows, cols * channels)
     b2 = b.reshape(rows, cols * channels)
+    acc = np.zeros(LANES * channels)
     for i in range(first, last):
-        row_channel_dots(a2[i], b2[i], channels, partial, i)
+        lane_dots(a2[i], b2[i], acc)
+        fold_lanes(acc, channels, partial, i)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**_JIT)
 def _update_rows(first, last, x, r, p, q, coef, partial):  # pragma: no cover - compiled
     """``x += step p``, ``r -= step q`` (``coef``: the step repeated along a row); ``r . r``."""
     rows = x.shape[0]
     channels = x.shape[2]
-    size = coef.size
-    x2 = x.reshape(rows, size)
-    r2 = r.reshape(rows, size)
-    p2 = p.reshape(rows, size)
-    q2 = q.reshape(rows, size)
+    size = U(coef.size)
+    x2 = x.reshape(rows, coef.size)
+    r2 = r.reshape(rows, coef.size)
+    p2 = p.reshape(rows, coef.size)
+    q2 = q.reshape(rows, coef.size)
+    acc = np.zeros(LANES * channels)
     for i in range(first, last):
         x_row = x2[i]
         r_row = r2[i]
@@ -96,19 +123,22 @@ def _update_rows(first, last, x, r, p, q, coef, partial):  # pragma: no cover - 
         for k in range(size):
             x_row[k] += coef[k] * p_row[k]
             r_row[k] -= coef[k] * q_row[k]
-        row_channel_dots(r_row, r_row, channels, partial, i)
+        lane_dots(r_row, r_row, acc)
+        fold_lanes(acc, channels, partial, i)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**_JIT)
 def _direction_rows(first, last, p, r, coef):  # pragma: no cover - compiled
     """``p = r + beta p``; ``coef`` is beta repeated along a row."""
     rows = p.shape[0]
-    size = coef.size
-    p2 = p.reshape(rows, size)
-    r2 = r.reshape(rows, size)
+    size = U(coef.size)
+    p2 = p.reshape(rows, coef.size)
+    r2 = r.reshape(rows, coef.size)
     for i in range(first, last):
+        p_row = p2[i]
+        r_row = r2[i]
         for k in range(size):
-            p2[i, k] = r2[i, k] + coef[k] * p2[i, k]
+            p_row[k] = r_row[k] + coef[k] * p_row[k]
 
 
 def by_rows(kernel, array: np.ndarray, *args) -> None:

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from numba import uint64 as U
 
-from stereodeblur.deconv.cg import _as_3d, by_rows, row_channel_dots
+from stereodeblur.deconv.cg import LANES, _as_3d, by_rows, fold_lanes, lane_dots
 from stereodeblur.errors import InputError
 
 # --- gradients ---------------------------------------------------------------------------
@@ -157,34 +158,43 @@ def _smoothness_rows(
         partial[i, 0] = acc
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _laplacian_rows(first, last, x, wx, wy, out, partial):  # pragma: no cover - compiled
     """``out += dx^T (wx * dx x) + dy^T (wy * dy x)`` (``wx``, ``wy`` include alpha).
 
+    One sweep per row: at entry ``k`` of a flat row (channel stride ``C``) the y terms, then
+    the flux from the left neighbour ``k - C``, minus the flux to the right one ``k + C``.
     Also writes the row sums of ``x * out`` per channel into ``partial`` (for CG).
     """
     rows, cols, channels = x.shape
-    size = cols * channels
-    x2 = x.reshape(rows, size)
-    wx2 = wx.reshape(rows, size)
-    wy2 = wy.reshape(rows, size)
-    out2 = out.reshape(rows, size)
+    x2 = x.reshape(rows, cols * channels)
+    wx2 = wx.reshape(rows, cols * channels)
+    wy2 = wy.reshape(rows, cols * channels)
+    out2 = out.reshape(rows, cols * channels)
+    size = U(cols * channels)
+    c = U(channels)
+    inner_end = size - c if cols > 1 else c  # [c, inner_end): both x neighbours exist
+    acc = np.zeros(LANES * channels)
     for i in range(first, last):
-        row = np.int64(i)
-        up = max(row - 1, 0)  # at the borders the neighbour is the pixel itself: d = 0
-        down = min(row + 1, rows - 1)
-        x_row = x2[row]
-        x_up = x2[up]
-        x_down = x2[down]
-        wy_up = wy2[up]
-        wy_row = wy2[row]
-        wx_row = wx2[row]
-        o = out2[row]
-        for k in range(size):
+        up = max(i - 1, 0)  # at the borders the neighbour is the pixel itself: d = 0
+        down = min(i + 1, rows - 1)
+        x_row, x_up, x_down = x2[i], x2[up], x2[down]
+        wy_up, wy_row, wx_row = wy2[up], wy2[i], wx2[i]
+        o = out2[i]
+        for k in range(U(0), min(c, size)):  # first column: no left neighbour
             v = x_row[k]
             o[k] += wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
-        for k in range(channels, size):
-            flux = wx_row[k - channels] * (x_row[k] - x_row[k - channels])
-            o[k] += flux
-            o[k - channels] -= flux
-        row_channel_dots(x_row, o, channels, partial, row)
+            if cols > 1:
+                o[k] -= wx_row[k] * (x_row[k + c] - v)
+        for k in range(c, inner_end):
+            v = x_row[k]
+            y_terms = wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
+            left = wx_row[k - c] * (v - x_row[k - c])
+            o[k] = ((o[k] + y_terms) + left) - wx_row[k] * (x_row[k + c] - v)
+        if cols > 1:
+            for k in range(inner_end, size):  # last column: no right neighbour
+                v = x_row[k]
+                y_terms = wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
+                o[k] = (o[k] + y_terms) + wx_row[k - c] * (v - x_row[k - c])
+        lane_dots(x_row, o, acc)
+        fold_lanes(acc, channels, partial, i)
