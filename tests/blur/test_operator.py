@@ -52,7 +52,7 @@ def test_transpose_with_duplicates_and_unsorted_columns():
     m = _random_matrix(2, np.float32, np.int32, duplicates=True)
     assert not m.has_canonical_format
     op = SparseBlur(m, SHAPE)
-    np.testing.assert_allclose(op._matrix_t.toarray(), m.toarray().T, rtol=1e-7)
+    np.testing.assert_allclose(op._transposed().toarray(), m.toarray().T, rtol=1e-7)
     assert dot_test(op, SHAPE + (3,), seed=4) < 1e-12
 
 
