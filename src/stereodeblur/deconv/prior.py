@@ -96,7 +96,7 @@ def gradient_adjoint(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
 
 def smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial) -> None:
     """Eq. 7 weights of ``image`` into ``wx``, ``wy``; row sums of ``h_eps(d I)`` to ``partial``."""
-    by_rows(_smoothness_rows, image, image, alpha, exponent, epsilon, wx, wy, partial)
+    by_rows(_smoothness_range, image, image, alpha, exponent, epsilon, wx, wy, partial)
 
 
 def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
@@ -104,58 +104,113 @@ def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
     by_rows(_laplacian_rows, x, x, wx, wy, out, partial)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _weight(difference, floor, power, rho_floor, small):  # pragma: no cover - compiled
-    """Weight ``max(|c|, eps)^(p - 2)`` of one difference ``c`` and its ``h_eps(c)``
-    (``small``: the quadratic's scale and offset below ``eps``)."""
-    g = abs(difference)
-    g64 = np.float64(g)
-    if g >= floor:
-        rho = g**power
-        return rho, np.float64(rho) * g64 * g64
-    return rho_floor, small[0] * g64 * g64 + small[1]
+def _smoothness_range(first, last, image, alpha, exponent, epsilon, wx, wy, partial) -> None:
+    """:func:`smoothness_weights` on rows ``first .. last - 1``.
 
-
-@numba.njit(cache=True, nogil=True)
-def _smoothness_rows(
-    first, last, image, alpha, exponent, epsilon, wx, wy, partial
-):  # pragma: no cover
-    """Eq. 7 weights ``alpha * max(|d I|, eps)^(p - 2)`` and row sums of ``h_eps(d I)``.
-
-    ``h_eps(c) = |c|^p`` for ``|c| >= eps`` and ``(p/2) eps^(p-2) c^2 + (1 - p/2) eps^p``
-    below: the function whose IRLS majoriser the weights are. The weights are 0 in the
-    last column (``wx``) and row (``wy``), where the differences are identically zero.
+    ``max(|d I|, eps)`` by numba, its power by numpy (whose ``power`` is vectorised, unlike
+    the scalar one numba calls), then the scale and ``h_eps`` by numba. Each step releases
+    the GIL.
     """
-    rows, cols, channels = image.shape
-    size = cols * channels
-    x2 = image.reshape(rows, size)
-    wx2 = wx.reshape(rows, size)
-    wy2 = wy.reshape(rows, size)
-    power = np.float32(exponent - 2.0)
     floor = np.float32(epsilon)
+    _floored_sizes_rows(first, last, image, floor, wx, wy)
+    power = np.float32(exponent - 2.0)
+    for weights in (wx, wy):
+        rows = weights[first:last]
+        np.power(rows, power, out=rows)
     scale = np.float32(alpha)
-    rho_floor = floor**power
     small = (
         0.5 * exponent * epsilon ** (exponent - 2.0),
         (1.0 - 0.5 * exponent) * epsilon**exponent,
     )
+    _smoothness_rows(first, last, image, floor, scale, small, wx, wy, partial)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _floored_sizes_rows(first, last, image, floor, wx, wy):  # pragma: no cover - compiled
+    """``max(|d I|, floor)`` into ``wx``, ``wy`` (``floor`` also where ``d`` is undefined)."""
+    rows, cols, channels = image.shape
+    x2 = image.reshape(rows, cols * channels)
+    wx2 = wx.reshape(rows, cols * channels)
+    wy2 = wy.reshape(rows, cols * channels)
+    size = U(cols * channels)
+    c = U(channels)
+    inner = size - c if cols > 1 else U(0)
     for i in range(first, last):
-        acc = 0.0
-        for k in range(size - channels):  # x direction: right neighbour k + channels
-            rho, h = _weight(x2[i, k + channels] - x2[i, k], floor, power, rho_floor, small)
-            acc += h
-            wx2[i, k] = scale * rho
-        for k in range(size - channels, size):
-            wx2[i, k] = 0.0
+        x_row, wx_row, wy_row = x2[i], wx2[i], wy2[i]
+        for k in range(inner):  # x direction: right neighbour k + channels
+            wx_row[k] = max(abs(x_row[k + c] - x_row[k]), floor)
+        for k in range(inner, size):
+            wx_row[k] = floor
+        x_down = x2[min(i + 1, rows - 1)]  # the last row: d = 0
+        for k in range(size):
+            wy_row[k] = max(abs(x_down[k] - x_row[k]), floor)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _smoothed_power(difference, rho, floor, small):  # pragma: no cover - compiled
+    """``h_eps(c)`` of one difference ``c`` given ``rho = max(|c|, eps)^(p - 2)`` (``small``:
+    the quadratic's scale and offset below ``eps``)."""
+    g = abs(difference)
+    g64 = np.float64(g)
+    if g >= floor:
+        return np.float64(rho) * g64 * g64
+    return small[0] * g64 * g64 + small[1]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _smoothness_rows(
+    first, last, image, floor, scale, small, wx, wy, partial
+):  # pragma: no cover - compiled
+    """Scale ``rho`` in ``wx``, ``wy`` to the weights ``alpha rho``; row sums of ``h_eps(d I)``.
+
+    ``h_eps(c) = |c|^p`` for ``|c| >= eps`` and ``(p/2) eps^(p-2) c^2 + (1 - p/2) eps^p``
+    below: the function whose IRLS majoriser the weights are. The weights are 0 in the
+    last column (``wx``) and row (``wy``), where the differences are identically zero.
+    Row sums add ``h`` per entry (x then y term) in :data:`LANES` fixed-order lanes.
+    """
+    rows, cols, channels = image.shape
+    x2 = image.reshape(rows, cols * channels)
+    wx2 = wx.reshape(rows, cols * channels)
+    wy2 = wy.reshape(rows, cols * channels)
+    size = U(cols * channels)
+    c = U(channels)
+    inner = size - c if cols > 1 else U(0)
+    h = np.empty(cols * channels)
+    for i in range(first, last):
+        x_row, wx_row, wy_row = x2[i], wx2[i], wy2[i]
+        for k in range(inner):
+            h[k] = _smoothed_power(x_row[k + c] - x_row[k], wx_row[k], floor, small)
+            wx_row[k] = scale * wx_row[k]
+        for k in range(inner, size):
+            h[k] = 0.0
+            wx_row[k] = 0.0
         if i < rows - 1:
-            for k in range(size):  # y direction: the next row
-                rho, h = _weight(x2[i + 1, k] - x2[i, k], floor, power, rho_floor, small)
-                acc += h
-                wy2[i, k] = scale * rho
+            x_down = x2[i + 1]
+            for k in range(size):
+                h[k] += _smoothed_power(x_down[k] - x_row[k], wy_row[k], floor, small)
+                wy_row[k] = scale * wy_row[k]
         else:
             for k in range(size):
-                wy2[i, k] = 0.0
-        partial[i, 0] = acc
+                wy_row[k] = 0.0
+        partial[i, 0] = _lane_sum(h)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _lane_sum(values):  # pragma: no cover - compiled
+    """Sum of a float64 vector in :data:`LANES` partial sums, a fixed order that vectorises."""
+    acc = np.zeros(LANES)
+    lanes = U(LANES)
+    blocks = U(values.size) // lanes
+    for block in range(blocks):
+        base = block * lanes
+        for lane in range(lanes):
+            acc[lane] += values[base + lane]
+    for k in range(blocks * lanes, U(values.size)):
+        acc[k - blocks * lanes] += values[k]
+    total = 0.0
+    for lane in range(LANES):
+        total += acc[lane]
+    return total
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
