@@ -72,15 +72,16 @@ def test_cg_vector_kernels_match_numpy(shape):
     cg._channel_dots(p, q, partial)
     np.testing.assert_allclose(partial, channel_row_dots(p, q), rtol=1e-12, atol=1e-12)
 
-    x_new, r_new = x.copy(), r.copy()
-    cg._update(x_new, r_new, p, q, coef, partial)
-    np.testing.assert_array_equal(x_new, x + step * p)
+    r_new = r.copy()
+    cg._update_residual(r_new, q, coef, partial)
     np.testing.assert_array_equal(r_new, r - step * q)
     np.testing.assert_allclose(partial, channel_row_dots(r_new, r_new), rtol=1e-12, atol=1e-12)
 
-    p_new = p.copy()
-    cg._direction(p_new, r, coef)
-    np.testing.assert_array_equal(p_new, r + step * p)
+    x_new, p_new = x.copy(), p.copy()
+    beta = np.tile(step[::-1].copy(), shape[1])
+    cg._update_iterate(x_new, p_new, r, coef, beta)
+    np.testing.assert_array_equal(x_new, x + step * p)
+    np.testing.assert_array_equal(p_new, r + step[::-1] * p)
 
 
 @pytest.mark.parametrize("threaded", [False, True])

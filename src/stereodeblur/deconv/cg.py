@@ -105,40 +105,39 @@ def _channel_dots_rows(first, last, a, b, partial):  # pragma: no cover - compil
 
 
 @numba.njit(**_JIT)
-def _update_rows(first, last, x, r, p, q, coef, partial):  # pragma: no cover - compiled
-    """``x += step p``, ``r -= step q`` (``coef``: the step repeated along a row); ``r . r``."""
-    rows = x.shape[0]
-    channels = x.shape[2]
-    size = U(coef.size)
-    x2 = x.reshape(rows, coef.size)
-    r2 = r.reshape(rows, coef.size)
-    p2 = p.reshape(rows, coef.size)
-    q2 = q.reshape(rows, coef.size)
+def _residual_rows(first, last, r, q, step, partial):  # pragma: no cover - compiled
+    """``r -= step q`` (``step`` repeated along a row); the row sums of ``r . r`` per channel."""
+    rows = r.shape[0]
+    channels = r.shape[2]
+    size = U(step.size)
+    r2 = r.reshape(rows, step.size)
+    q2 = q.reshape(rows, step.size)
     acc = np.zeros(LANES * channels)
     for i in range(first, last):
-        x_row = x2[i]
         r_row = r2[i]
-        p_row = p2[i]
         q_row = q2[i]
         for k in range(size):
-            x_row[k] += coef[k] * p_row[k]
-            r_row[k] -= coef[k] * q_row[k]
+            r_row[k] -= step[k] * q_row[k]
         lane_dots(r_row, r_row, acc)
         fold_lanes(acc, channels, partial, i)
 
 
 @numba.njit(**_JIT)
-def _direction_rows(first, last, p, r, coef):  # pragma: no cover - compiled
-    """``p = r + beta p``; ``coef`` is beta repeated along a row."""
+def _direction_rows(first, last, x, p, r, step, beta):  # pragma: no cover - compiled
+    """``x += step p``, then ``p = r + beta p`` (``step``, ``beta`` repeated along a row)."""
     rows = p.shape[0]
-    size = U(coef.size)
-    p2 = p.reshape(rows, coef.size)
-    r2 = r.reshape(rows, coef.size)
+    size = U(step.size)
+    x2 = x.reshape(rows, step.size)
+    p2 = p.reshape(rows, step.size)
+    r2 = r.reshape(rows, step.size)
     for i in range(first, last):
+        x_row = x2[i]
         p_row = p2[i]
         r_row = r2[i]
         for k in range(size):
-            p_row[k] = r_row[k] + coef[k] * p_row[k]
+            old = p_row[k]
+            x_row[k] += step[k] * old
+            p_row[k] = r_row[k] + beta[k] * old
 
 
 def by_rows(kernel, array: np.ndarray, *args) -> None:
@@ -160,12 +159,12 @@ def _channel_dots(a, b, partial) -> None:
     by_rows(_channel_dots_rows, a, a, b, partial)
 
 
-def _update(x, r, p, q, coef, partial) -> None:
-    by_rows(_update_rows, x, x, r, p, q, coef, partial)
+def _update_residual(r, q, step, partial) -> None:
+    by_rows(_residual_rows, r, r, q, step, partial)
 
 
-def _direction(p, r, coef) -> None:
-    by_rows(_direction_rows, p, p, r, coef)
+def _update_iterate(x, p, r, step, beta) -> None:
+    by_rows(_direction_rows, p, x, p, r, step, beta)
 
 
 # Below this many values per vector the kernels run on the calling thread only: waking the
@@ -282,8 +281,11 @@ def solve(apply, b, x, *, num_iterations: int, rtol: float | None, residual=None
     norms = [np.sqrt(rr)]
     active = np.ones(channels, dtype=bool) if target is None else norms[0] > target
     p = r.copy()
-    coef = np.empty(b.shape[1] * channels, dtype=b.dtype)  # a per-channel scalar along a row
-    coef_rows = coef.reshape(b.shape[1], channels)
+    # Per-channel scalars repeated along a row, for contiguous inner loops.
+    step = np.zeros(b.shape[1] * channels, dtype=b.dtype)
+    beta = np.zeros_like(step)
+    step_rows = step.reshape(b.shape[1], channels)
+    beta_rows = beta.reshape(b.shape[1], channels)
     taken = 0
     for _ in range(num_iterations):
         active &= rr > 0
@@ -292,14 +294,14 @@ def solve(apply, b, x, *, num_iterations: int, rtol: float | None, residual=None
         q = apply(p, partial)
         curvature = partial.sum(axis=0)
         active &= curvature > 0
-        coef_rows[:] = np.where(active, rr / np.where(active, curvature, 1.0), 0.0)
-        _update(x, r, p, q, coef, partial)
+        step_rows[:] = np.where(active, rr / np.where(active, curvature, 1.0), 0.0)
+        _update_residual(r, q, step, partial)
         rr_new = np.where(active, partial.sum(axis=0), rr)
         taken += 1
         norms.append(np.sqrt(rr_new))
-        coef_rows[:] = np.where(active, rr_new / np.where(rr > 0, rr, 1.0), 0.0)
+        beta_rows[:] = np.where(active, rr_new / np.where(rr > 0, rr, 1.0), 0.0)
         rr = rr_new
         if target is not None:
             active &= np.sqrt(rr) > target
-        _direction(p, r, coef)
+        _update_iterate(x, p, r, step, beta)  # x += step p and the next direction, one pass
     return x, np.array(norms), taken
