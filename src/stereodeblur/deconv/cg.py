@@ -14,6 +14,7 @@ number of threads.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -148,11 +149,16 @@ def by_rows(kernel, array: np.ndarray, *args) -> None:
     ``prange`` this keeps its speed on a machine busy with other work. Ranges never
     change what a row computes, so results do not depend on the number of threads.
     """
-    rows = array.shape[0]
     parts = 2 * numba.get_num_threads() if array.size >= PARALLEL_MIN_SIZE else 1
-    bounds = np.linspace(0, rows, min(parts, rows) + 1).astype(np.int64)
-    ranges = [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
+    ranges = _row_ranges(array.shape[0], parts)
     run_ranges(kernel, ranges, *args)
+
+
+@functools.lru_cache(maxsize=64)
+def _row_ranges(rows: int, parts: int) -> tuple[tuple[int, int], ...]:
+    """At most ``parts`` non-empty contiguous ranges of about equal length covering ``rows``."""
+    bounds = np.linspace(0, rows, min(parts, rows) + 1).astype(np.int64)
+    return tuple((int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a)
 
 
 def _channel_dots(a, b, partial) -> None:
