@@ -272,14 +272,66 @@ def _item_positions(
 
 
 @njit(**_JIT)
+def _grow(out_idx, out_val, pos, needed):
+    """The output arrays with room for ``needed`` more entries after ``pos`` (doubled)."""
+    capacity = out_idx.size
+    while pos + needed > capacity:
+        capacity = 2 * capacity
+    if capacity == out_idx.size:
+        return out_idx, out_val
+    grown_idx = np.empty(capacity, np.int32)
+    grown_idx[:pos] = out_idx[:pos]
+    grown_val = np.empty(capacity, np.float32)
+    grown_val[:pos] = out_val[:pos]
+    return grown_idx, grown_val
+
+
+@njit(**_JIT)
+def _reaches(px, py, n, table, height, width):
+    """Whether a tap of the ``n`` positions can fall on a pixel counted in ``table``.
+
+    ``table`` is the summed-area table ``(H + 1, W + 1)`` of the pixels wanted; taps of a
+    position ``p`` lie in ``[floor(p), floor(p) + 1]`` (as in :func:`_merge_taps`).
+    """
+    bx0 = max(np.int64(np.floor(px[:n].min())), 0)
+    bx1 = min(np.int64(np.floor(px[:n].max())) + 1, width - 1)
+    by0 = max(np.int64(np.floor(py[:n].min())), 0)
+    by1 = min(np.int64(np.floor(py[:n].max())) + 1, height - 1)
+    if bx0 > bx1 or by0 > by1:
+        return False
+    inside = table[by1 + 1, bx1 + 1] - table[by0, bx1 + 1] - table[by1 + 1, bx0] + table[by0, bx0]
+    return inside > 0
+
+
+@njit(**_JIT)
 def _assemble_range(
-    first, last, kind, homographies, labels, visible, item_x, item_y, item_src, flows, fractions
+    first,
+    last,
+    kind,
+    homographies,
+    labels,
+    visible,
+    item_x,
+    item_y,
+    item_src,
+    flows,
+    fractions,
+    select,
 ):
-    """Taps of items ``first .. last - 1``: ``(counts int64, indices int32, values float32)``."""
+    """Taps of items ``first .. last - 1``: ``(counts int64, indices int32, values float32)``.
+
+    ``select = (take, other_indptr, other_indices, other_values, table)``: items with
+    ``take[item]`` copy row ``item`` of the other CSR matrix instead of computing theirs;
+    with a summed-area ``table`` (not ``(1, 1)``), items none of whose taps can reach a
+    pixel it counts get no entries. Empty ``take`` and a ``(1, 1)`` table: every item's taps.
+    """
+    take, other_indptr, other_indices, other_values, table = select
     height, width = labels.shape
     n = fractions.size
     drop_outside = kind == _KIND_DISPLACEMENT
     divisor = float(n) if kind == _KIND_HOMOGRAPHY else 1.0
+    some_taken = take.size > 0
+    restricted = table.shape[0] > 1
     acc = np.empty(_ACCUMULATOR_CELLS, np.float64)
     mark = np.zeros(_ACCUMULATOR_CELLS, np.uint8)
     touched = np.empty(4 * n, np.int64)
@@ -291,14 +343,16 @@ def _assemble_range(
     out_val = np.empty(capacity, np.float32)
     pos = np.int64(0)  # not a literal: one compiled version of the callees
     for item in range(first, last):
-        if pos + 4 * n > capacity:
-            capacity = 2 * capacity
-            grown_idx = np.empty(capacity, np.int32)
-            grown_idx[:pos] = out_idx[:pos]
-            out_idx = grown_idx
-            grown_val = np.empty(capacity, np.float32)
-            grown_val[:pos] = out_val[:pos]
-            out_val = grown_val
+        if some_taken and take[item]:
+            a = other_indptr[item]
+            c = other_indptr[item + 1] - a
+            out_idx, out_val = _grow(out_idx, out_val, pos, c)
+            out_idx[pos : pos + c] = other_indices[a : a + c]
+            out_val[pos : pos + c] = other_values[a : a + c]
+            counts[item - first] = c
+            pos += c
+            continue
+        out_idx, out_val = _grow(out_idx, out_val, pos, 4 * n)
         _item_positions(
             kind,
             item,
@@ -313,6 +367,9 @@ def _assemble_range(
             flows,
             fractions,
         )
+        if restricted and not _reaches(px, py, n, table, height, width):
+            counts[item - first] = 0
+            continue
         c = _merge_taps(
             px,
             py,
@@ -333,8 +390,27 @@ def _assemble_range(
     return counts, out_idx[:pos], out_val[:pos]
 
 
+_SELECT_ALL = (
+    np.zeros(0, np.bool_),
+    np.zeros(1, np.int64),
+    np.zeros(0, np.int32),
+    np.zeros(0, np.float32),
+    np.zeros((1, 1), np.int64),
+)
+
+
 def _assemble(
-    kind, num_items, homographies, labels, visible, item_x, item_y, item_src, flows, fractions
+    kind,
+    num_items,
+    homographies,
+    labels,
+    visible,
+    item_x,
+    item_y,
+    item_src,
+    flows,
+    fractions,
+    select=_SELECT_ALL,
 ):
     """CSR arrays ``(indptr int64, indices int32, values float32)`` of all items' taps."""
     parts = run_ranges(
@@ -349,6 +425,7 @@ def _assemble(
         item_src,
         flows,
         fractions,
+        select,
     )
     indptr = np.zeros(num_items + 1, np.int64)
     np.cumsum(np.concatenate([p[0] for p in parts]), out=indptr[1:])
@@ -366,18 +443,30 @@ def _assemble(
 
 
 def assemble_homography(
-    homographies: np.ndarray, labels: np.ndarray, num_samples: int, visible=None
+    homographies: np.ndarray, labels: np.ndarray, num_samples: int, visible=None, substitute=None
 ):
     """CSR arrays of the homography operator (rows already divided by ``num_samples``).
 
     ``visible`` (int16 or int32 ``(num_samples, H, W)``) gives the segment of every pixel at
-    every instant (:mod:`.visibility`); None: ``labels`` throughout.
+    every instant (:mod:`.visibility`); None: ``labels`` throughout. ``substitute``:
+    ``(take, indptr, indices, values)``, a bool mask over the pixels and a CSR matrix (int32
+    indices, float32 values) whose rows the pixels of the mask take instead of theirs.
     """
     dummy = np.zeros(1, np.int32)
     flows = np.zeros((2, 1, 1, 2), np.float64)
     fractions = np.zeros(num_samples, np.float64)
     if visible is None:
         visible = _NO_VISIBILITY
+    select = _SELECT_ALL
+    if substitute is not None:
+        take, indptr, indices, values = substitute
+        select = (
+            np.ascontiguousarray(take, dtype=np.bool_).ravel(),
+            np.asarray(indptr, dtype=np.int64),
+            np.asarray(indices, dtype=np.int32),
+            np.asarray(values, dtype=np.float32),
+            _SELECT_ALL[4],
+        )
     return _assemble(
         _KIND_HOMOGRAPHY,
         labels.size,
@@ -389,7 +478,15 @@ def assemble_homography(
         dummy,
         flows,
         fractions,
+        select,
     )
+
+
+def summed_area(mask: np.ndarray) -> np.ndarray:
+    """Summed-area table ``(H + 1, W + 1)`` int64 of a bool ``(H, W)`` mask."""
+    table = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), np.int64)
+    np.cumsum(np.cumsum(mask, axis=0, dtype=np.int64), axis=1, out=table[1:, 1:])
+    return table
 
 
 def assemble_splats(
@@ -399,10 +496,19 @@ def assemble_splats(
     item_src: np.ndarray,
     flows: np.ndarray,
     fractions: np.ndarray,
+    rows=None,
 ):
-    """Per source item, the summed splat weights onto blurred pixels (CSR arrays)."""
+    """Per source item, the summed splat weights onto blurred pixels (CSR arrays).
+
+    ``rows`` (bool ``labels_shape``): only the items some of whose taps can fall on these
+    blurred pixels are splatted (the others get no entries), so the splats onto them are
+    complete and those onto other pixels are not.
+    """
     homographies = np.zeros((1, 1, 3, 3), np.float64)
     labels = np.zeros(labels_shape, np.int32)
+    select = _SELECT_ALL
+    if rows is not None:
+        select = _SELECT_ALL[:4] + (summed_area(np.asarray(rows, dtype=bool)),)
     return _assemble(
         _KIND_DISPLACEMENT,
         item_x.size,
@@ -414,6 +520,7 @@ def assemble_splats(
         item_src,
         flows,
         fractions,
+        select,
     )
 
 
@@ -520,9 +627,12 @@ def _merge_rows(first, last, indptr, indices, values, merged_col, merged_val, un
 def _write_normalised(
     first, last, indptr, merged_col, merged_val, totals, min_total, out_indptr, out_idx, out_val
 ):
-    """Rows ``first .. last - 1`` divided by their sums, or identity rows below ``min_total``."""
+    """Rows ``first .. last - 1`` divided by their sums, or identity rows below ``min_total``
+    (rows given no room in ``out_indptr`` stay empty)."""
     for z in range(first, last):
         p = out_indptr[z]
+        if p == out_indptr[z + 1]:
+            continue
         if totals[z] >= min_total:
             a = indptr[z]
             for i in range(out_indptr[z + 1] - p):
@@ -533,11 +643,12 @@ def _write_normalised(
             out_val[p] = 1.0
 
 
-def normalise_rows(indptr, indices, values, min_total):
+def normalise_rows(indptr, indices, values, min_total, rows=None):
     """Rows divided by their sums; rows summing to less than ``min_total`` become identity rows.
 
     Columns must be non-decreasing within each row; duplicates are merged. The
     merge happens in place in ``indices`` and ``values``, which are overwritten.
+    ``rows`` (bool, one per row): only these rows are kept, the others come out empty.
     """
     num_rows = indptr.size - 1
     unique = np.empty(num_rows, np.int64)
@@ -545,8 +656,11 @@ def normalise_rows(indptr, indices, values, min_total):
     ranges = _chunks(num_rows)
     run_ranges(_merge_rows, ranges, indptr, indices, values, indices, values, unique, totals)
     covered = totals >= min_total
+    counts = np.where(covered, unique, 1)
+    if rows is not None:
+        counts[~np.asarray(rows, dtype=bool).ravel()] = 0
     out_indptr = np.zeros(num_rows + 1, np.int64)
-    np.cumsum(np.where(covered, unique, 1), out=out_indptr[1:])
+    np.cumsum(counts, out=out_indptr[1:])
     out_idx = np.empty(out_indptr[-1], np.int32)
     out_val = np.empty(out_indptr[-1], np.float32)
     run_ranges(

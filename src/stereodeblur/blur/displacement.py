@@ -70,6 +70,7 @@ def displacement_blur(
     exposure: Exposure,
     *,
     num_samples: int = NUM_SAMPLES,
+    rows: np.ndarray | None = None,
 ) -> SparseBlur:
     """Blur operator from 2D displacements by forward warping (Kim & Lee 2015).
 
@@ -84,26 +85,34 @@ def displacement_blur(
         Frame rate and exposure time; the instants are ``exposure.sample_fractions``.
     num_samples : int, optional
         Number ``N`` of instants (paper: ``N = 70``).
+    rows : ndarray of bool, shape (H, W), optional
+        Build only the rows of these blurred pixels (equal to the full operator's); the
+        other rows are empty. Default: all rows.
 
     Returns
     -------
     SparseBlur
-        Rows: blurred pixels; columns: pixels of the sharp image. Every row sums to one.
+        Rows: blurred pixels; columns: pixels of the sharp image. Every row (of ``rows``)
+        sums to one.
     """
     forward, backward, fractions, margin = _inputs(
         flow_forward, flow_backward, exposure, num_samples
     )
     shape = forward.shape[:2]
+    if rows is not None:
+        rows = np.asarray(rows)
+        if rows.shape != shape or rows.dtype != bool:
+            raise InputError(f"rows must be a bool array of shape {shape}, got {rows.shape}")
     item_x, item_y, item_src = extended_grid(shape, margin)
     flows = np.ascontiguousarray(np.stack([forward, backward]))
-    splats = _kernels.assemble_splats(shape, item_x, item_y, item_src, flows, fractions)
+    splats = _kernels.assemble_splats(shape, item_x, item_y, item_src, flows, fractions, rows)
     size = shape[0] * shape[1]
     # Source-major splats -> rows of blurred pixels; columns come out sorted since
     # the extended pixels are ordered by the in-image pixel they stand for.
-    rows = _kernels.transpose(*splats, size, row_label=item_src)
+    by_row = _kernels.transpose(*splats, size, row_label=item_src)
     del splats
-    indptr, indices, data = _kernels.normalise_rows(*rows, MIN_COVERAGE * fractions.size)
-    del rows
+    indptr, indices, data = _kernels.normalise_rows(*by_row, MIN_COVERAGE * fractions.size, rows)
+    del by_row
     return SparseBlur(csr_from_arrays(indptr, indices, data, size), shape)
 
 

@@ -42,6 +42,18 @@ def _check_visible(visible, num_samples: int, shape, num_segments: int) -> np.nd
     return np.ascontiguousarray(visible, dtype=dtype)
 
 
+def _check_substitute(substitute, shape) -> tuple:
+    """``(mask, indptr, indices, values)`` of ``(operator, mask)`` after checking shapes."""
+    other, mask = substitute
+    mask = np.asarray(mask)
+    if not isinstance(other, SparseBlur) or other.shape != tuple(shape):
+        raise ValueError(f"substitute must hold a SparseBlur of shape {tuple(shape)}")
+    if mask.shape != tuple(shape) or mask.dtype != bool:
+        raise ValueError(f"the substitute's mask must be bool of shape {tuple(shape)}")
+    matrix = other.matrix
+    return mask, matrix.indptr, matrix.indices, matrix.data.astype(np.float32, copy=False)
+
+
 def csr_from_arrays(indptr, indices, data, size: int) -> sp.csr_matrix:
     """A ``size x size`` CSR matrix, with int32 index arrays when they fit."""
     if indptr[-1] < np.iinfo(np.int32).max:
@@ -62,7 +74,12 @@ def _inputs(sceneflow: SceneFlow, exposure: Exposure, num_samples) -> tuple:
 
 
 def homography_blur(
-    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = NUM_SAMPLES, visible=None
+    sceneflow: SceneFlow,
+    exposure: Exposure,
+    *,
+    num_samples: int = NUM_SAMPLES,
+    visible=None,
+    substitute: tuple[SparseBlur, np.ndarray] | None = None,
 ) -> SparseBlur:
     """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
 
@@ -79,6 +96,10 @@ def homography_blur(
         (:func:`~stereodeblur.blur.visibility.sceneflow_visibility`); where it is
         :data:`~stereodeblur.blur.visibility.HIDDEN`, the pixel's own segment stands in.
         None (the paper's Eq. 3-4): every pixel shows its own segment throughout.
+    substitute : (SparseBlur, ndarray of bool (H, W)), optional
+        Another operator over the view and a mask: the pixels of the mask take that
+        operator's rows, which are not computed here
+        (:func:`~stereodeblur.blur.operator.merge_rows` of the two, built once).
 
     Returns
     -------
@@ -89,7 +110,11 @@ def homography_blur(
     homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
     if visible is not None:
         visible = _check_visible(visible, num_samples, labels.shape, homographies.shape[0])
-    indptr, indices, data = _kernels.assemble_homography(homographies, labels, num_samples, visible)
+    if substitute is not None:
+        substitute = _check_substitute(substitute, labels.shape)
+    indptr, indices, data = _kernels.assemble_homography(
+        homographies, labels, num_samples, visible, substitute
+    )
     matrix = csr_from_arrays(indptr, indices, data, labels.size)
     return SparseBlur(matrix, tuple(labels.shape))
 

@@ -82,13 +82,14 @@ def build_operator(
     if settings.kernels == "displacement":
         return displacement_blur(forward, backward, exposure, num_samples=num)
     from ..blur.homography import homography_blur
-    from ..blur.operator import merge_rows
 
-    operator = homography_blur(motion.sceneflow, exposure, num_samples=num, visible=visible)
-    if flow_rows is None or not np.any(flow_rows):
-        return operator
-    return merge_rows(
-        operator, displacement_blur(forward, backward, exposure, num_samples=num), flow_rows
+    substitute = None
+    if flow_rows is not None and np.any(flow_rows):
+        flow_rows = np.asarray(flow_rows, dtype=bool)
+        rows = displacement_blur(forward, backward, exposure, num_samples=num, rows=flow_rows)
+        substitute = (rows, flow_rows)
+    return homography_blur(
+        motion.sceneflow, exposure, num_samples=num, visible=visible, substitute=substitute
     )
 
 
