@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stereodeblur.deconv import cg
+from stereodeblur.deconv import cg, irls
 from stereodeblur.deconv.prior import add_weighted_laplacian, smoothness_weights
 
 # Shapes with one row or column, widths below and above the lane count, 1, 3 and 4 channels.
@@ -113,3 +113,15 @@ def test_smoothness_weights_match_numpy(shape, threaded, monkeypatch):
     assert np.all(wx[:, -1] == 0) and np.all(wy[-1] == 0)
     h_y = np.append(h_y, 0.0)  # the last row has no y difference
     np.testing.assert_allclose(partial[:, 0], h_x + h_y, rtol=1e-6)
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_weighted_residual_matches_numpy(shape):
+    blurred, reblurred = random_arrays(shape, 2, seed=5)
+    squared = np.random.default_rng(6).uniform(0, 1, shape[:2]).astype(np.float32)
+    residual = np.full(shape, np.nan, np.float32)
+    partial = np.full((shape[0], 1), np.nan)
+    irls._residual(blurred, reblurred, squared, residual, partial)
+    np.testing.assert_array_equal(residual, blurred - reblurred)
+    expected = np.einsum("ij,ijc->i", squared.astype(np.float64), residual.astype(np.float64) ** 2)
+    np.testing.assert_allclose(partial[:, 0], expected, rtol=1e-12)

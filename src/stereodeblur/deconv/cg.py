@@ -86,6 +86,24 @@ def fold_lanes(acc, channels, partial, row):  # pragma: no cover - compiled
 
 
 @numba.njit(**_JIT)
+def lane_sum(values):  # pragma: no cover - compiled
+    """Sum of a float64 vector in :data:`LANES` partial sums, a fixed order that vectorises."""
+    acc = np.zeros(LANES)
+    lanes = U(LANES)
+    blocks = U(values.size) // lanes
+    for block in range(blocks):
+        base = block * lanes
+        for lane in range(lanes):
+            acc[lane] += values[base + lane]
+    for k in range(blocks * lanes, U(values.size)):
+        acc[k - blocks * lanes] += values[k]
+    total = 0.0
+    for lane in range(LANES):
+        total += acc[lane]
+    return total
+
+
+@numba.njit(**_JIT)
 def row_channel_dots(a, b, channels, partial, row):  # pragma: no cover - compiled
     """``partial[row, c] = sum_k a[k] b[k]`` over the entries of channel ``c`` of a flat row."""
     acc = np.zeros(LANES * channels)
@@ -280,8 +298,10 @@ def solve(apply, b, x, *, num_iterations: int, rtol: float | None, residual=None
         r = residual
     else:
         r = b - apply(x, partial)
-    _channel_dots(b, b, partial)
-    target = None if rtol is None else rtol * np.sqrt(partial.sum(axis=0))
+    target = None
+    if rtol is not None:
+        _channel_dots(b, b, partial)
+        target = rtol * np.sqrt(partial.sum(axis=0))
     _channel_dots(r, r, partial)
     rr = partial.sum(axis=0)
     norms = [np.sqrt(rr)]

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from numba import uint64 as U
 
-from stereodeblur.deconv.cg import _as_3d, by_rows, solve, threads_for
+from stereodeblur.deconv.cg import _as_3d, by_rows, lane_sum, solve, threads_for
 from stereodeblur.deconv.prior import (
     add_weighted_laplacian,
     gradient,
@@ -105,21 +106,30 @@ def _scale_rows(first, last, image, scale):  # pragma: no cover - compiled
                 image[i, j, c] *= s
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _residual_rows(
     first, last, blurred, reblurred, squared_weights, residual, partial
-):  # pragma: no cover
+):  # pragma: no cover - compiled
+    """``residual = B - A I``; ``partial[i] = sum_j w_j^2 sum_c residual_jc^2`` in fixed order."""
     rows, cols, channels = blurred.shape
+    size = U(cols * channels)
+    b2 = blurred.reshape(rows, cols * channels)
+    a2 = reblurred.reshape(rows, cols * channels)
+    r2 = residual.reshape(rows, cols * channels)
+    squares = np.empty(cols * channels)
+    weighted = np.empty(cols)
     for i in range(first, last):
-        acc = 0.0
+        b_row, a_row, r_row = b2[i], a2[i], r2[i]
+        for k in range(size):
+            value = b_row[k] - a_row[k]
+            r_row[k] = value
+            squares[k] = np.float64(value) * np.float64(value)
         for j in range(cols):
-            s = 0.0
+            total = 0.0
             for c in range(channels):
-                value = blurred[i, j, c] - reblurred[i, j, c]
-                residual[i, j, c] = value
-                s += np.float64(value) * np.float64(value)
-            acc += np.float64(squared_weights[i, j]) * s
-        partial[i, 0] = acc
+                total += squares[j * channels + c]
+            weighted[j] = np.float64(squared_weights[i, j]) * total
+        partial[i, 0] = lane_sum(weighted)
 
 
 # --- the solver ---------------------------------------------------------------------------

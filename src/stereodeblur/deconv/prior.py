@@ -15,7 +15,7 @@ import numba
 import numpy as np
 from numba import uint64 as U
 
-from stereodeblur.deconv.cg import LANES, _as_3d, by_rows, fold_lanes, lane_dots
+from stereodeblur.deconv.cg import LANES, _as_3d, by_rows, fold_lanes, lane_dots, lane_sum
 from stereodeblur.errors import InputError
 
 # --- gradients ---------------------------------------------------------------------------
@@ -192,25 +192,7 @@ def _smoothness_rows(
         else:
             for k in range(size):
                 wy_row[k] = 0.0
-        partial[i, 0] = _lane_sum(h)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _lane_sum(values):  # pragma: no cover - compiled
-    """Sum of a float64 vector in :data:`LANES` partial sums, a fixed order that vectorises."""
-    acc = np.zeros(LANES)
-    lanes = U(LANES)
-    blocks = U(values.size) // lanes
-    for block in range(blocks):
-        base = block * lanes
-        for lane in range(lanes):
-            acc[lane] += values[base + lane]
-    for k in range(blocks * lanes, U(values.size)):
-        acc[k - blocks * lanes] += values[k]
-    total = 0.0
-    for lane in range(LANES):
-        total += acc[lane]
-    return total
+        partial[i, 0] = lane_sum(h)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
