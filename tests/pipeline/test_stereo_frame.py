@@ -40,19 +40,20 @@ def _count(monkeypatch, scene, trusts=None):
     inside = []  # dense flows inside the estimator are its own business
     read_frame, estimate_scene_flow = scene.read_frame, estimate.estimate_scene_flow
     optical_flow = initial.initial_optical_flow
-    motion_trust, noise_sigma = trust.motion_trust, noise.estimate_noise_sigma
+    motion_trusts, noise_sigma = trust.motion_trusts, noise.estimate_noise_sigma
     trusts = [] if trusts is None else trusts
 
-    def spy_trust(blurred, following, flow, **kwargs):
-        trusts.append(("trust", blurred.tobytes(), following.tobytes(), flow.tobytes()))
-        return motion_trust(blurred, following, flow, **kwargs)
+    def spy_trust(blurred, following, flows, **kwargs):
+        for flow in flows:
+            trusts.append(("trust", blurred.tobytes(), following.tobytes(), flow.tobytes()))
+        return motion_trusts(blurred, following, flows, **kwargs)
 
     def spy_noise(image):
         if not inside:
             trusts.append(("noise", image.tobytes()))
         return noise_sigma(image)
 
-    monkeypatch.setattr(trust, "motion_trust", spy_trust)
+    monkeypatch.setattr(trust, "motion_trusts", spy_trust)
     monkeypatch.setattr(noise, "estimate_noise_sigma", spy_noise)
 
     def spy_read(view, index, **kwargs):

@@ -129,48 +129,110 @@ def motion_trust(
     noise_sigma : float, optional
         Noise level of ``blurred``; estimated from it when None.
     """
+    (trust,) = motion_trusts(
+        blurred,
+        blurred_next,
+        (flow,),
+        occlusion=occlusion,
+        relative=relative,
+        scale=scale,
+        smoothing=smoothing,
+        noise_sigma=noise_sigma,
+    )
+    return trust
+
+
+def motion_trusts(
+    blurred: np.ndarray,
+    blurred_next: np.ndarray,
+    flows,
+    *,
+    occlusion: np.ndarray | None = None,
+    relative: float = TRUST_RELATIVE,
+    scale: float = TRUST_SCALE,
+    smoothing: float = 2.0,
+    noise_sigma: float | None = None,
+) -> list[np.ndarray]:
+    """:func:`motion_trust` of each of several flows between the same two frames.
+
+    Each map equals :func:`motion_trust`'s; what does not depend on the flow is computed
+    once, and every flow after the first samples ``blurred_next`` only where it differs from
+    the one before (flows that differ near motion boundaries only cost little more than one).
+
+    Parameters
+    ----------
+    flows : sequence of ndarray, shape (H, W, 2)
+        Flows ``(u, v)`` from ``blurred`` to ``blurred_next``.
+    blurred, blurred_next, occlusion, relative, scale, smoothing, noise_sigma
+        As for :func:`motion_trust`.
+    """
     b = _as_3d(blurred, "blurred")
     b_next = _as_3d(blurred_next, "blurred_next")
-    flow = np.asarray(flow, dtype=np.float64)
+    flows = [np.asarray(flow, dtype=np.float64) for flow in flows]
     H, W = b.shape[:2]
-    if b_next.shape != b.shape or flow.shape != (H, W, 2):
+    if b_next.shape != b.shape or any(flow.shape != (H, W, 2) for flow in flows):
+        shapes = ", ".join(str(flow.shape) for flow in flows)
         raise InputError(
-            f"blurred {b.shape}, blurred_next {b_next.shape} and flow {flow.shape} "
+            f"blurred {b.shape}, blurred_next {b_next.shape} and flow {shapes} "
             "must cover the same (H, W)"
         )
     for name, value in (("relative", relative), ("scale", scale), ("smoothing", smoothing)):
         if not (np.isfinite(value) and value >= 0):
             raise InputError(f"{name} must be a non-negative number, got {value!r}")
-    sigma = estimate_noise_sigma(blurred) if noise_sigma is None else float(noise_sigma)
-    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
-    xs, ys = x + flow[..., 0], y + flow[..., 1]
-    known = np.isfinite(xs) & np.isfinite(ys)
-    xs, ys = np.where(known, xs, x), np.where(known, ys, y)
-    moved = np.stack(
-        [
-            ndimage.map_coordinates(b_next[..., c], [ys, xs], order=1, mode="nearest")
-            for c in range(b.shape[2])
-        ],
-        axis=-1,
-    )
-    leaves = ~known | (xs < 0) | (xs > W - 1) | (ys < 0) | (ys > H - 1)
     if occlusion is not None:
         occlusion = np.asarray(occlusion, dtype=bool)
         if occlusion.shape != (H, W):
             raise InputError(f"occlusion must have shape {(H, W)}, got {occlusion.shape}")
-        leaves |= occlusion
-    squared = np.where(leaves, 0.0, np.mean((moved - b) ** 2, axis=2))
+    if not flows:
+        return []
+    sigma = estimate_noise_sigma(blurred) if noise_sigma is None else float(noise_sigma)
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
     still = np.mean((b_next - b) ** 2, axis=2)
-    share = (~leaves).astype(np.float64)
     if smoothing > 0:
-        share = ndimage.gaussian_filter(share, smoothing, mode="nearest")
-        squared = ndimage.gaussian_filter(squared, smoothing, mode="nearest")
-        squared = squared / np.maximum(share, 1e-6)
         still = ndimage.gaussian_filter(still, smoothing, mode="nearest")
     s2 = relative**2 * still + scale**2 + (3.0 * sigma) ** 2
-    trust = share / (1.0 + squared / np.maximum(s2, 1e-24))
-    trust[leaves] = 0.0
-    return np.clip(trust, 0.0, 1.0).astype(np.float32)
+    trusts, before = [], None
+    for flow in flows:
+        xs, ys = x + flow[..., 0], y + flow[..., 1]
+        known = np.isfinite(xs) & np.isfinite(ys)
+        xs, ys = np.where(known, xs, x), np.where(known, ys, y)
+        moved = _moved(b_next, xs, ys, before)
+        before = (xs, ys, moved)
+        leaves = ~known | (xs < 0) | (xs > W - 1) | (ys < 0) | (ys > H - 1)
+        if occlusion is not None:
+            leaves |= occlusion
+        squared = np.where(leaves, 0.0, np.mean((moved - b) ** 2, axis=2))
+        share = (~leaves).astype(np.float64)
+        if smoothing > 0:
+            share = ndimage.gaussian_filter(share, smoothing, mode="nearest")
+            squared = ndimage.gaussian_filter(squared, smoothing, mode="nearest")
+            squared = squared / np.maximum(share, 1e-6)
+        trust = share / (1.0 + squared / np.maximum(s2, 1e-24))
+        trust[leaves] = 0.0
+        trusts.append(np.clip(trust, 0.0, 1.0).astype(np.float32))
+    return trusts
+
+
+def _moved(b_next: np.ndarray, xs: np.ndarray, ys: np.ndarray, before) -> np.ndarray:
+    """``b_next`` sampled bilinearly at ``(xs, ys)``; ``before = (xs, ys, moved)`` of another
+    flow, reused where the positions are the same (the sampling is pointwise)."""
+    if before is None:
+        where = (ys, xs)
+    else:
+        changed = (xs != before[0]) | (ys != before[1])
+        where = (ys[changed], xs[changed])
+    samples = np.stack(
+        [
+            ndimage.map_coordinates(b_next[..., c], where, order=1, mode="nearest")
+            for c in range(b_next.shape[2])
+        ],
+        axis=-1,
+    )
+    if before is None:
+        return samples
+    moved = before[2].copy()
+    moved[changed] = samples
+    return moved
 
 
 def trust_anchor(trust: np.ndarray, *, strength: float = ANCHOR_STRENGTH) -> np.ndarray:

@@ -75,18 +75,35 @@ def frame_trust(
     near the motion's flow discontinuities, if already known
     (:func:`~stereodeblur.deconv.trust.near_motion_boundaries` of ``motion.flow_forward``).
     """
-    from ..deconv.trust import motion_trust, near_motion_boundaries
+    (trust,) = frame_trusts(window, view, (motion,), noise_sigma=noise_sigma, bands=(band,))
+    return trust
+
+
+def frame_trusts(
+    window: FrameWindow, view: str, motions, *, noise_sigma: float, bands
+) -> list[np.ndarray]:
+    """:func:`frame_trust` of each of several motions of ``view`` (``bands``: one each, or
+    None), sharing the work (:func:`~stereodeblur.deconv.trust.motion_trusts`)."""
+    from ..deconv.trust import motion_trusts, near_motion_boundaries
 
     blurred = window.blurred(view)
     following = window.frame(view, window.neighbour)
-    trust = motion_trust(blurred, following, motion.flow_forward, noise_sigma=noise_sigma)
-    if motion.flow_backward is not None and window.other is not None:
+    flows = [motion.flow_forward for motion in motions]
+    trusts = motion_trusts(blurred, following, flows, noise_sigma=noise_sigma)
+    backward = [i for i, m in enumerate(motions) if m.flow_backward is not None]
+    if backward and window.other is not None:
         preceding = window.frame(view, window.other)
-        backward = motion_trust(blurred, preceding, motion.flow_backward, noise_sigma=noise_sigma)
-        trust = np.maximum(trust, backward)
-    if band is None:
-        band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
-    return np.where(band, trust, 1.0).astype(np.float32)
+        flows = [motions[i].flow_backward for i in backward]
+        for i, trust in zip(
+            backward, motion_trusts(blurred, preceding, flows, noise_sigma=noise_sigma), strict=True
+        ):
+            trusts[i] = np.maximum(trusts[i], trust)
+    out = []
+    for motion, trust, band in zip(motions, trusts, bands, strict=True):
+        if band is None:
+            band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
+        out.append(np.where(band, trust, 1.0).astype(np.float32))
+    return out
 
 
 def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None, *, noise_sigma=None):
@@ -153,11 +170,13 @@ def data_terms(
         duty_cycle = window.exposure.duty_cycle
         outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
         weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
-        trust = alpha_trust = frame_trust(window, view, motion, noise_sigma=sigma)
+        motions, bands = [motion], [None]
+        if dense_rows and settings.alpha == "auto":  # and the own flow's, in its band
+            motions.append(view_operator.own)
+            bands.append(view_operator.flow_rows)
+        trusts = frame_trusts(window, view, motions, noise_sigma=sigma, bands=bands)
+        trust, alpha_trust = trusts[0], trusts[-1]
         anchor = None if dense_rows else trust_anchor(trust)
-        if dense_rows and settings.alpha == "auto":
-            own, band = view_operator.own, view_operator.flow_rows  # the own flow's band
-            alpha_trust = frame_trust(window, view, own, noise_sigma=sigma, band=band)
     if settings.boundary_mask == "gt":
         keep = _gt_mask(scene, view, window.index)
         weights = weights * keep
