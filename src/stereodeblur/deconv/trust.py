@@ -215,12 +215,13 @@ def motion_trusts(
 
 def _moved(b_next: np.ndarray, xs: np.ndarray, ys: np.ndarray, before) -> np.ndarray:
     """``b_next`` sampled bilinearly at ``(xs, ys)``; ``before = (xs, ys, moved)`` of another
-    flow, reused where the positions are the same (the sampling is pointwise)."""
-    if before is None:
-        where = (ys, xs)
-    else:
+    flow, reused where the positions are the same (the sampling is pointwise) if that is
+    most pixels."""
+    if before is not None:
         changed = (xs != before[0]) | (ys != before[1])
-        where = (ys[changed], xs[changed])
+        if np.count_nonzero(changed) > changed.size // 2:
+            before = None
+    where = (ys, xs) if before is None else (ys[changed], xs[changed])
     samples = np.stack(
         [
             ndimage.map_coordinates(b_next[..., c], where, order=1, mode="nearest")

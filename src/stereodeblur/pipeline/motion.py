@@ -10,6 +10,7 @@ on it, so a motion towards the previous frame blurs like the same motion forward
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -245,13 +246,19 @@ def stereo_motion(
             forward, backward = view_dense_flow(window, view)
             motions[view] = FrameMotion(index, neighbour, view, None, forward, backward)
     else:
-        estimate = estimate_motion(window, settings, progress=progress)
-        motions = {}
-        for view in views:
-            motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
+        # The views' dense flows do not depend on the estimate: computed meanwhile, in a
+        # thread of their own (OpenCV releases the GIL; the estimate mostly runs in one).
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="dense-flow") as pool:
+            dense = {}
             if uses_boundary_flow(settings):
-                motion = replace(motion, boundary_flow=view_dense_flow(window, view))
-            motions[view] = motion
+                dense = {view: pool.submit(view_dense_flow, window, view) for view in views}
+            estimate = estimate_motion(window, settings, progress=progress)
+            motions = {}
+            for view in views:
+                motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
+                if view in dense:
+                    motion = replace(motion, boundary_flow=dense[view].result())
+                motions[view] = motion
     return StereoMotion(index, MappingProxyType(motions), estimate)
 
 

@@ -155,7 +155,12 @@ class SceneFlow:
         return trajectory_homographies(self.camera, self.normals, self.twists, fractions, self.view)
 
     def reversed(self) -> SceneFlow:
-        """The same scene flow with every motion inverted (frame t to t - 1)."""
-        return SceneFlow(
+        """The same scene flow with every motion inverted (frame t to t - 1), sharing the
+        points at frame t."""
+        out = SceneFlow(
             self.camera, self.labels, self.normals, -self.twists, self.occlusion, self.view
         )
+        points = self.__dict__.get("_geometry", {}).get("points")
+        if points is not None:
+            out.__dict__["_geometry"] = {"points": points}
+        return out
