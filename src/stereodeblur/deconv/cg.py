@@ -125,19 +125,34 @@ def _channel_dots_rows(first, last, a, b, partial):  # pragma: no cover - compil
 
 @numba.njit(**_JIT)
 def _residual_rows(first, last, r, q, step, partial):  # pragma: no cover - compiled
-    """``r -= step q`` (``step`` repeated along a row); the row sums of ``r . r`` per channel."""
+    """``r -= step q`` (``step`` repeated along a row); the row sums of ``r . r`` per channel.
+
+    The squares go straight into the lanes of :func:`lane_dots` (same order of additions).
+    """
     rows = r.shape[0]
     channels = r.shape[2]
     size = U(step.size)
     r2 = r.reshape(rows, step.size)
     q2 = q.reshape(rows, step.size)
+    lanes = U(LANES * channels)
+    blocks = size // lanes
     acc = np.zeros(LANES * channels)
     for i in range(first, last):
         r_row = r2[i]
         q_row = q2[i]
-        for k in range(size):
-            r_row[k] -= step[k] * q_row[k]
-        lane_dots(r_row, r_row, acc)
+        for block in range(blocks):
+            base = block * lanes
+            for lane in range(lanes):
+                k = base + lane
+                value = r_row[k] - step[k] * q_row[k]
+                r_row[k] = value
+                acc[lane] += np.float64(value) * np.float64(value)
+        base = blocks * lanes
+        for lane in range(size - base):
+            k = base + lane
+            value = r_row[k] - step[k] * q_row[k]
+            r_row[k] = value
+            acc[lane] += np.float64(value) * np.float64(value)
         fold_lanes(acc, channels, partial, i)
 
 

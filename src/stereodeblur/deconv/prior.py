@@ -15,7 +15,7 @@ import numba
 import numpy as np
 from numba import uint64 as U
 
-from stereodeblur.deconv.cg import LANES, _as_3d, by_rows, fold_lanes, lane_dots, lane_sum
+from stereodeblur.deconv.cg import LANES, _as_3d, by_rows, fold_lanes, lane_sum
 from stereodeblur.errors import InputError
 
 # --- gradients ---------------------------------------------------------------------------
@@ -195,13 +195,24 @@ def _smoothness_rows(
         partial[i, 0] = lane_sum(h)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _laplacian_entry(o, x_row, x_up, x_down, wy_up, wy_row, wx_row, k, c):  # pragma: no cover
+    """Entry ``k`` of ``out + L x`` with both x neighbours: the y terms, then the flux from
+    the left neighbour ``k - c``, minus the flux to the right one ``k + c``."""
+    v = x_row[k]
+    y_terms = wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
+    left = wx_row[k - c] * (v - x_row[k - c])
+    return ((o[k] + y_terms) + left) - wx_row[k] * (x_row[k + c] - v)
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _laplacian_rows(first, last, x, wx, wy, out, partial):  # pragma: no cover - compiled
     """``out += dx^T (wx * dx x) + dy^T (wy * dy x)`` (``wx``, ``wy`` include alpha).
 
-    One sweep per row: at entry ``k`` of a flat row (channel stride ``C``) the y terms, then
-    the flux from the left neighbour ``k - C``, minus the flux to the right one ``k + C``.
-    Also writes the row sums of ``x * out`` per channel into ``partial`` (for CG).
+    One sweep per row (channel stride ``C``), which also adds ``x * out`` into the lanes of
+    :func:`~stereodeblur.deconv.cg.lane_dots` (entry ``k`` to lane ``k % (LANES C)``, in
+    blocks of whole lanes so that it vectorises) and writes their row sums per channel into
+    ``partial`` (for CG). The first and last columns lack the left and right flux.
     """
     rows, cols, channels = x.shape
     x2 = x.reshape(rows, cols * channels)
@@ -210,7 +221,11 @@ def _laplacian_rows(first, last, x, wx, wy, out, partial):  # pragma: no cover -
     out2 = out.reshape(rows, cols * channels)
     size = U(cols * channels)
     c = U(channels)
+    lanes = U(LANES * channels)
     inner_end = size - c if cols > 1 else c  # [c, inner_end): both x neighbours exist
+    head_end = min(lanes, inner_end)  # then whole blocks of lanes from lane 0
+    blocks = (inner_end - head_end) // lanes
+    tail = head_end + blocks * lanes
     acc = np.zeros(LANES * channels)
     for i in range(first, last):
         up = max(i - 1, 0)  # at the borders the neighbour is the pixel itself: d = 0
@@ -220,18 +235,31 @@ def _laplacian_rows(first, last, x, wx, wy, out, partial):  # pragma: no cover -
         o = out2[i]
         for k in range(U(0), min(c, size)):  # first column: no left neighbour
             v = x_row[k]
-            o[k] += wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
+            value = o[k] + (wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v))
             if cols > 1:
-                o[k] -= wx_row[k] * (x_row[k + c] - v)
-        for k in range(c, inner_end):
-            v = x_row[k]
-            y_terms = wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
-            left = wx_row[k - c] * (v - x_row[k - c])
-            o[k] = ((o[k] + y_terms) + left) - wx_row[k] * (x_row[k + c] - v)
+                value -= wx_row[k] * (x_row[k + c] - v)
+            o[k] = value
+            acc[k] += np.float64(v) * np.float64(value)
+        for k in range(c, head_end):
+            value = _laplacian_entry(o, x_row, x_up, x_down, wy_up, wy_row, wx_row, k, c)
+            o[k] = value
+            acc[k] += np.float64(x_row[k]) * np.float64(value)
+        for block in range(blocks):
+            base = head_end + block * lanes
+            for lane in range(lanes):
+                k = base + lane
+                value = _laplacian_entry(o, x_row, x_up, x_down, wy_up, wy_row, wx_row, k, c)
+                o[k] = value
+                acc[lane] += np.float64(x_row[k]) * np.float64(value)
+        for k in range(tail, inner_end):
+            value = _laplacian_entry(o, x_row, x_up, x_down, wy_up, wy_row, wx_row, k, c)
+            o[k] = value
+            acc[k - tail] += np.float64(x_row[k]) * np.float64(value)
         if cols > 1:
             for k in range(inner_end, size):  # last column: no right neighbour
                 v = x_row[k]
                 y_terms = wy_up[k] * (v - x_up[k]) - wy_row[k] * (x_down[k] - v)
-                o[k] = (o[k] + y_terms) + wx_row[k - c] * (v - x_row[k - c])
-        lane_dots(x_row, o, acc)
+                value = (o[k] + y_terms) + wx_row[k - c] * (v - x_row[k - c])
+                o[k] = value
+                acc[k % lanes] += np.float64(v) * np.float64(value)
         fold_lanes(acc, channels, partial, i)
