@@ -20,14 +20,12 @@ product was ten times slower than a serial one on a loaded 2-core machine).
 
 from __future__ import annotations
 
-import os
-import threading
-from concurrent.futures import ThreadPoolExecutor
-
 import numba
 import numpy as np
 from numba import njit
 
+from .._threads import balanced_ranges, run_ranges
+from .._threads import executor as _executor
 from .trajectories import clamp, displacement_point, homography_point, split_coordinate
 
 _ACCUMULATOR_CELLS = 1 << 16
@@ -50,48 +48,9 @@ def _chunks(num_rows: int, per_thread: int = 8) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
 
 
-_pool: ThreadPoolExecutor | None = None
-_pool_lock = threading.Lock()
-
-
-def _forget_pool_after_fork() -> None:
-    """A forked child has none of the parent's worker threads: start afresh."""
-    global _pool, _pool_lock
-    _pool = None
-    _pool_lock = threading.Lock()
-
-
-os.register_at_fork(after_in_child=_forget_pool_after_fork)
-
-
-def _executor() -> ThreadPoolExecutor:
-    """The shared worker threads, as many as ``numba.get_num_threads()``."""
-    global _pool
-    threads = numba.get_num_threads()
-    with _pool_lock:
-        if _pool is None or _pool._max_workers != threads:
-            if _pool is not None:
-                _pool.shutdown(wait=False)
-            _pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="stereodeblur")
-        return _pool
-
-
-def run_ranges(function, ranges, *args) -> list:
-    """``function(first, last, *args)`` for every range, in parallel; results in order."""
-    if len(ranges) == 1:
-        return [function(ranges[0][0], ranges[0][1], *args)]
-    pool = _executor()
-    futures = [pool.submit(function, a, b, *args) for a, b in ranges]
-    return [f.result() for f in futures]
-
-
 def _nnz_ranges(indptr: np.ndarray, parts: int) -> list[tuple[int, int]]:
     """At most ``parts`` contiguous row ranges with about equal numbers of entries."""
-    num_rows = indptr.size - 1
-    edges = np.searchsorted(indptr, np.linspace(0, indptr[-1], parts + 1))
-    edges[0], edges[-1] = 0, num_rows
-    ranges = [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
-    return ranges or [(0, num_rows)]
+    return balanced_ranges(indptr, parts)
 
 
 @njit(**_JIT)

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .._threads import balanced_ranges, run_ranges
 from ..geometry.camera import StereoCamera
 from .census import census_cost_at, wrong_match_cost
 from .prediction import predict
@@ -132,34 +133,34 @@ def data_costs(
         Costs, ``inf`` in empty slots.
     """
     lt, rt, lt1, rt1 = codes
-    out = _data_costs(
-        wrong_match_cost(lt),
-        lt,
-        rt,
-        lt1,
-        rt1,
-        samples,
-        sample_bounds,
-        candidates,
-        proposals.abc,
-        proposals.R,
-        proposals.T,
-        camera.K,
-        camera.K_inv,
-        camera.fx * camera.baseline,
-        float(outside_cost),
-    )
+    out = np.zeros(candidates.shape)
+    # Segments in parallel, in ranges of about equal work (samples times candidates).
+    work = np.diff(sample_bounds) * np.count_nonzero(candidates >= 0, axis=1)
+    work_bounds = np.concatenate([[0], np.cumsum(work)])
+    parts = max(1, min(2 * numba.get_num_threads(), int(work_bounds[-1]) // _MIN_WORK))
+    motion = (proposals.abc, proposals.R, proposals.T)
+    cam = (camera.K, camera.K_inv, camera.fx * camera.baseline)
+    arguments = (samples, sample_bounds, candidates, motion, cam, float(outside_cost), out)
+    ranges = balanced_ranges(work_bounds, parts)
+    run_ranges(_data_costs, ranges, wrong_match_cost(lt), (lt, rt, lt1, rt1), *arguments)
     return np.where(candidates >= 0, out * factor[:, None], np.inf)
+
+
+_MIN_WORK = 100000
+"""Fewer candidate samples than this per range are not worth a thread (:func:`data_costs`)."""
 
 
 @numba.njit(cache=True, nogil=True)
 def _data_costs(
-    leave_costs, lt, rt, lt1, rt1, samples, bounds, candidates, abc, R, T, K, Kinv, fb, outside
+    first, last, leave_costs, codes, samples, bounds, candidates, motion, cam, outside, out
 ):
-    num, width_c = candidates.shape
+    """``out[s, i]`` for segments ``first .. last - 1`` (see :func:`data_costs`)."""
+    lt, rt, lt1, rt1 = codes
+    abc, R, T = motion
+    K, Kinv, fb = cam
+    width_c = candidates.shape[1]
     width = lt.shape[1]
-    out = np.zeros((num, width_c))
-    for s in range(num):
+    for s in range(first, last):
         for i in range(width_c):
             p = candidates[s, i]
             if p < 0:
@@ -197,7 +198,6 @@ def _data_costs(
                 c = census_cost_at(code, rt1, x1 - d1, y1)
                 total += leave if c < 0 else c
             out[s, i] = total
-    return out
 
 
 # --------------------------------------------------------------------------- smoothness

@@ -28,6 +28,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from .._threads import balanced_ranges, run_ranges
 from ..geometry.camera import StereoCamera
 from ..geometry.rigid import so3_exp
 from .fusion import ProposalSet
@@ -209,25 +210,62 @@ def _photometric(energy, JtJ, Jtr, k, reference, views, position, pos, scale, wa
                 JtJ[k, p, m] += wt * jr[p] * jr[m]
 
 
-@numba.njit(cache=True, nogil=True)
+_MIN_PIXELS = 20000
+"""Fewer pixels than this per range are not worth a thread (:func:`_accumulate`)."""
+
+
 def _accumulate(pixels, ref, views, ref_valid, current, fused, camera, scale, prior, want_system):
     """Energy per group and, if ``want_system``, its Gauss-Newton normal equations (9 params).
 
-    ``pixels = (groups, xs, ys)``, ``views = (targets, grads_x, grads_y, target_valid)``,
-    ``current`` and ``fused`` are ``(abc, R, T)``, ``camera = (K, K_inv, fx * baseline)``."""
+    ``pixels = (groups, xs, ys)`` sorted by group, ``views = (targets, grads_x, grads_y,
+    target_valid)``, ``current`` and ``fused`` are ``(abc, R, T)``, ``camera = (K, K_inv,
+    fx * baseline)``. Ranges of whole groups run in parallel; every group's sums run over
+    its pixels in their order, so the result does not depend on the ranges.
+    """
+    groups = pixels[0]
+    num_groups = len(current[0])
+    energy = np.zeros(num_groups)
+    JtJ = np.zeros((num_groups, 9, 9))
+    Jtr = np.zeros((num_groups, 9))
+    bounds = np.searchsorted(groups, np.arange(num_groups + 1))
+    parts = max(1, min(2 * numba.get_num_threads(), len(groups) // _MIN_PIXELS))
+    ranges = [(int(bounds[a]), int(bounds[b])) for a, b in balanced_ranges(bounds, parts)]
+    arguments = (ref, views, ref_valid, current, fused, camera, scale, prior, want_system)
+    run_ranges(_accumulate_range, ranges, pixels, *arguments, energy, JtJ, Jtr)
+    lower = np.tril_indices(9, -1)
+    JtJ[:, lower[0], lower[1]] = JtJ[:, lower[1], lower[0]]
+    return energy, JtJ, Jtr
+
+
+@numba.njit(cache=True, nogil=True)
+def _accumulate_range(
+    first,
+    last,
+    pixels,
+    ref,
+    views,
+    ref_valid,
+    current,
+    fused,
+    camera,
+    scale,
+    prior,
+    want_system,
+    energy,
+    JtJ,
+    Jtr,
+):
+    """:func:`_accumulate`'s sums over pixels ``first .. last - 1`` (whole groups), added to
+    ``energy``, ``JtJ`` (upper triangle) and ``Jtr``."""
     groups, xs, ys = pixels
     abc, R, T = current
     abc0, R0, T0 = fused
     K, Kinv, fb = camera
-    num_groups = len(abc)
-    energy = np.zeros(num_groups)
-    JtJ = np.zeros((num_groups, 9, 9))
-    Jtr = np.zeros((num_groups, 9))
     buf = (np.zeros(3), np.zeros(9))
     pos = np.zeros((4, 9))  # rows: d0, x1, y1, d1 derivatives
     jp = np.zeros((4, 9))
     base = np.zeros(4)
-    for n in range(len(groups)):
+    for n in range(first, last):
         k = groups[n]
         x = xs[n]
         y = ys[n]
@@ -263,11 +301,6 @@ def _accumulate(pixels, ref, views, ref_valid, current, fused, camera, scale, pr
             want_system,
             buf,
         )
-    for k in range(num_groups):
-        for p in range(9):
-            for m in range(p):
-                JtJ[k, p, m] = JtJ[k, m, p]
-    return energy, JtJ, Jtr
 
 
 def refine_proposals(
@@ -337,6 +370,8 @@ def refine_proposals(
         # parts (pixels entering or leaving them would make the energy jump).
         keep = _usable(camera, proposals, gs, xs, ys, ref_valid, target_valid, VALID_MARGIN)
         gs, xs, ys = gs[keep], xs[keep], ys[keep]
+    order = np.argsort(gs, kind="stable")  # by group, each group's pixels in grid order
+    gs, xs, ys = gs[order], xs[order], ys[order]
     fb = camera.fx * camera.baseline
     abc0, R0, T0 = proposals.abc.copy(), proposals.R.copy(), proposals.T.copy()
     abc, R, T = abc0.copy(), R0.copy(), T0.copy()
