@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -200,10 +201,14 @@ def estimate_scene_flow(
     stages = _Stages(progress)
     prepared = prepare_frames(images, settings)
     stages.done("census")
-    matches = initial_matches(prepared.u8)
-    stages.done("initial")
     count = settings.num_segments or default_num_segments((height, width))
-    graph = segment_graph(slic_segments(prepared.segment_image, count))
+    # The matches (OpenCV, which releases the GIL) meanwhile in a thread of their own.
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="matches") as pool:
+        pending = pool.submit(initial_matches, prepared.u8)
+        segments = slic_segments(prepared.segment_image, count)
+        matches = pending.result()
+    stages.done("initial")  # with the superpixels, computed meanwhile
+    graph = segment_graph(segments)
     stages.done("superpixels")
     pixels = fit_pixels(camera, graph, matches, settings)
     start = segment_proposals(camera, graph, pixels, settings, rng)
