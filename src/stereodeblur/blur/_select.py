@@ -5,7 +5,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._kernels import _nnz_ranges, run_ranges
+from .._threads import balanced_ranges, run_ranges
 
 
 @numba.njit(cache=True, nogil=True)
@@ -35,5 +35,5 @@ def select_rows(a, b, take: np.ndarray):
     data = np.empty(int(indptr[-1]), np.result_type(a.data, b.data))
     parts = 2 * numba.get_num_threads() if indptr[-1] >= 1 << 16 else 1
     arrays = (a.indptr, a.indices, a.data, b.indptr, b.indices, b.data, indptr, indices, data)
-    run_ranges(_copy_rows, _nnz_ranges(indptr, parts), take, *arrays)
+    run_ranges(_copy_rows, balanced_ranges(indptr, parts), take, *arrays)
     return data, indices.astype(index_dtype, copy=False), indptr.astype(index_dtype)

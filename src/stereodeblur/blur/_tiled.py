@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ._kernels import _executor, _nnz_ranges, run_ranges
+from .._threads import balanced_ranges, executor, run_ranges
 
 TILE = 16
 """Rows per tile: one AVX-512 vector or two AVX2 vectors of float32."""
@@ -142,7 +142,7 @@ def tile_rows(indptr, indices, data, num_cols: int) -> TiledMatrix:
     shift = int(_largest_offset(indptr, indices))
     margin = shift + TILE
     row_ptr = np.asarray(indptr)[np.minimum(np.arange(num_tiles + 1) * TILE, num_rows)]
-    ranges = _nnz_ranges(row_ptr, 2 * numba.get_num_threads())
+    ranges = balanced_ranges(row_ptr, 2 * numba.get_num_threads())
     seen = [np.zeros(2 * shift + 1, np.int64) for _ in ranges]
     counts = np.zeros(num_tiles, np.int64)
     _each(
@@ -169,7 +169,7 @@ def _each(function, jobs) -> None:
     if len(jobs) == 1:
         function(*jobs[0])
         return
-    pool = _executor()
+    pool = executor()
     for future in [pool.submit(function, *job) for job in jobs]:
         future.result()
 
@@ -296,7 +296,7 @@ _NO_SCALE = np.zeros(0, np.float32)
 def _tile_ranges(matrix: TiledMatrix) -> list[tuple[int, int]]:
     if matrix.values.size < 1 << 16:
         return [(0, matrix.num_tiles)]
-    return _nnz_ranges(matrix.tile_ptr, 2 * numba.get_num_threads())
+    return balanced_ranges(matrix.tile_ptr, 2 * numba.get_num_threads())
 
 
 def tiled_product(matrix: TiledMatrix, planes, out, *, shift: int = 0, scale=None) -> None:
