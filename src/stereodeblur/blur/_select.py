@@ -23,7 +23,8 @@ def _copy_rows(first, last, take, a_ptr, a_idx, a_val, b_ptr, b_idx, b_val, ptr,
 
 
 def select_rows(a, b, take: np.ndarray):
-    """``(data, indices, indptr)`` (scipy's CSR tuple) with row ``r`` of CSR ``b`` where ``take[r]``, else of ``a``.
+    """Row ``r`` of CSR ``b`` where ``take[r]``, else of ``a``, as scipy's ``(data, indices,
+    indptr)`` tuple.
 
     Index arrays are int32 when the entries fit, int64 otherwise.
     """
