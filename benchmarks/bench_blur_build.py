@@ -15,12 +15,16 @@ the peak memory one build adds (resident memory sampled every millisecond
 during the build, minus the memory before it), the median time of one forward and one adjoint on an
 RGB float32 image (numba kernels, and scipy's SpMV for comparison), of one Gram product
 ``A^T W^2 A`` (``SparseBlur.gram``, what every CG step of the deconvolution takes), and
-the peak resident memory of the whole process so far.
+the peak resident memory of the whole process so far. Float32 products use the tiled
+format (``stereodeblur.blur._tiled``: tiles of 16 rows sharing their column offsets, of
+``A`` and ``A^T``, built on the first float32 product): the script reports their size,
+their entries against the CSR's and their build time.
 
 The memory-bandwidth floor: the script first measures this machine's streaming bandwidth
 (a triad ``a = b + s c`` and a plain read over 64 MiB arrays, on all numba threads; the
 best of several runs), then for every operator the shortest time to just read its CSR
-arrays once on those threads: no product that reads the matrix once can be faster.
+arrays once on those threads, and to read the tiles of ``A`` once: no product that reads
+the matrix once can be faster.
 
 Run: ``python benchmarks/bench_blur_build.py [--sizes 320x240 640x480 1242x375]``
 """
@@ -183,27 +187,36 @@ def bandwidth_gb_s(repeats: int) -> tuple[float, float]:
     return 3 * a.nbytes / triad / 1e9, 2 * b.nbytes / read / 1e9
 
 
-def stream_seconds(op, repeats: int) -> float:
-    """Shortest time to read ``op``'s CSR values and indices once, on all threads."""
+def stream_seconds(op, repeats: int) -> tuple[float, float]:
+    """Shortest times to read once, on all threads, ``op``'s CSR arrays and the tiles of
+    ``A`` that a float32 product reads (values and starts)."""
     m = op.matrix
     _on_threads(_read, m.indices, m.data)  # warm-up
-    return fastest(lambda: _on_threads(_read, m.indices, m.data), 4 * repeats)
+    csr = fastest(lambda: _on_threads(_read, m.indices, m.data), 4 * repeats)
+    tiles = op._tiled()[0]
+    values, starts = tiles.values.ravel(), tiles.starts.view(np.int64)
+    _on_threads(_read, starts, starts)  # warm-up (compiles the int64 version)
+    tiled = fastest(lambda: _on_threads(_read, values.view(np.int32), values), 4 * repeats)
+    tiled += fastest(lambda: _on_threads(_read, starts, starts), 4 * repeats)
+    return csr, tiled
 
 
-def matrix_mb(op) -> float:
-    total = 0
-    for m in (op.matrix, op._matrix_t):
-        total += m.data.nbytes + m.indices.nbytes + m.indptr.nbytes
-    return total / 2**20
+def matrix_mb(op) -> tuple[float, float]:
+    """MB of the CSR arrays of ``A`` and of the tiles of ``A`` and ``A^T``."""
+    m = op.matrix
+    csr = m.data.nbytes + m.indices.nbytes + m.indptr.nbytes
+    return csr / 2**20, sum(t.nbytes for t in op._tiled()) / 2**20
 
 
 def apply_times(op, image: np.ndarray, repeats: int) -> dict[str, float]:
     """Median seconds of one forward and one adjoint: numba kernels, and scipy's SpMV."""
     flat = image.reshape(-1, image.shape[2])
-    A, At = op.matrix, op._matrix_t
+    A, At = op.matrix, op._transposed()
     squared = np.random.default_rng(2).uniform(0, 1, op.shape).astype(np.float32)
+    csr, tiled = stream_seconds(op, repeats)
     return {
-        "stream": stream_seconds(op, repeats),
+        "stream csr": csr,
+        "stream tiles": tiled,
         "gram": timed(lambda: op.gram(image, squared), repeats)[0],
         "forward": timed(lambda: op.forward(image), repeats)[0],
         "adjoint": timed(lambda: op.adjoint(image), repeats)[0],
@@ -263,15 +276,21 @@ def main(argv=None) -> None:
                     f"{name}: {first:.2f} s"
                 )
             build_time, op = timed(build, args.repeats)
+            tile_time, _ = timed(lambda op=op: type(op)(op.matrix, op.shape)._tiled(), 3)
             ms = {k: 1e3 * v for k, v in apply_times(op, image, 4 * args.repeats).items()}
+            csr_mb, tiles_mb = matrix_mb(op)
+            tiled_entries = sum(t.values.size for t in op._tiled()) / 2 / op.matrix.nnz
             print(
                 f"  {name:12s} build {build_time:6.3f} s   nnz {op.matrix.nnz / 1e6:6.2f} M "
-                f"({op.matrix.nnz / op.matrix.shape[0]:4.1f}/row)   A+A^T {matrix_mb(op):6.1f} MB"
+                f"({op.matrix.nnz / op.matrix.shape[0]:4.1f}/row)   CSR A {csr_mb:6.1f} MB"
                 f"   build peak +{build_peak_mb(build):5.0f} MB\n"
+                f"  {'':12s} tiles of A and A^T: {tiles_mb:6.1f} MB, {tiled_entries:4.2f}x the "
+                f"entries, built in {1e3 * tile_time:5.1f} ms (on first float32 product)\n"
                 f"  {'':12s} RGB float32: forward {ms['forward']:5.1f} ms, adjoint "
                 f"{ms['adjoint']:5.1f} ms (scipy {ms['scipy forward']:5.1f} / "
-                f"{ms['scipy adjoint']:5.1f} ms), gram {ms['gram']:5.1f} ms; reading the "
-                f"matrix once {ms['stream']:5.1f} ms   process peak RSS {peak_rss_mb():5.0f} MB"
+                f"{ms['scipy adjoint']:5.1f} ms), gram {ms['gram']:5.1f} ms; reading once: "
+                f"the CSR of A {ms['stream csr']:5.1f} ms, the tiles of A {ms['stream tiles']:5.1f}"
+                f" ms   process peak RSS {peak_rss_mb():5.0f} MB"
             )
             del op
         compiled = True
