@@ -2,7 +2,9 @@
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
+from stereodeblur.deconv import trust as trust_module
 from stereodeblur.deconv.trust import motion_trust, motion_trusts
 
 SHAPE = (36, 44)
@@ -51,3 +53,25 @@ def test_motion_trusts_of_the_same_flow_twice_and_of_none():
     first, again = motion_trusts(frame, following, [flow, flow.copy()])
     np.testing.assert_array_equal(first, again)
     assert motion_trusts(frame, following, []) == []
+
+
+@pytest.mark.parametrize("shape", [(480, 64), (7, 5), (1, 9), (2, 2)])
+@pytest.mark.parametrize("spread", [0.5, 3.0, 30.0])
+def test_the_sampling_equals_map_coordinates_bit_for_bit(shape, spread):
+    """Inside, outside, on pixel centres and on the last row and column."""
+    rng = np.random.default_rng(int(10 * spread) + shape[0])
+    image = rng.random((*shape, 3))
+    y, x = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
+    ys, xs = y + rng.normal(0, spread, shape), x + rng.normal(0, spread, shape)
+    for coordinate, last in ((xs, shape[1] - 1), (ys, shape[0] - 1)):
+        pick = rng.random(shape)
+        coordinate[pick < 0.1] = np.round(coordinate[pick < 0.1])
+        coordinate[pick > 0.95] = last
+    expected = np.stack(
+        [
+            ndimage.map_coordinates(image[..., c], [ys, xs], order=1, mode="nearest")
+            for c in range(3)
+        ],
+        axis=-1,
+    )
+    np.testing.assert_array_equal(trust_module._moved(image, xs, ys), expected)

@@ -54,6 +54,7 @@ frame instead (strength 0.05-0.3) lowered both kernels' PSNR.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from scipy import ndimage
 
@@ -155,9 +156,8 @@ def motion_trusts(
 ) -> list[np.ndarray]:
     """:func:`motion_trust` of each of several flows between the same two frames.
 
-    Each map equals :func:`motion_trust`'s; what does not depend on the flow is computed
-    once, and every flow after the first samples ``blurred_next`` only where it differs from
-    the one before (flows that differ near motion boundaries only cost little more than one).
+    Each map equals :func:`motion_trust`'s; what does not depend on the flow (the frames'
+    difference and its window mean) is computed once.
 
     Parameters
     ----------
@@ -191,13 +191,12 @@ def motion_trusts(
     if smoothing > 0:
         still = ndimage.gaussian_filter(still, smoothing, mode="nearest")
     s2 = relative**2 * still + scale**2 + (3.0 * sigma) ** 2
-    trusts, before = [], None
+    trusts = []
     for flow in flows:
         xs, ys = x + flow[..., 0], y + flow[..., 1]
         known = np.isfinite(xs) & np.isfinite(ys)
         xs, ys = np.where(known, xs, x), np.where(known, ys, y)
-        moved = _moved(b_next, xs, ys, before)
-        before = (xs, ys, moved)
+        moved = _moved(b_next, xs, ys)
         leaves = ~known | (xs < 0) | (xs > W - 1) | (ys < 0) | (ys > H - 1)
         if occlusion is not None:
             leaves |= occlusion
@@ -213,27 +212,50 @@ def motion_trusts(
     return trusts
 
 
-def _moved(b_next: np.ndarray, xs: np.ndarray, ys: np.ndarray, before) -> np.ndarray:
-    """``b_next`` sampled bilinearly at ``(xs, ys)``; ``before = (xs, ys, moved)`` of another
-    flow, reused where the positions are the same (the sampling is pointwise) if that is
-    most pixels."""
-    if before is not None:
-        changed = (xs != before[0]) | (ys != before[1])
-        if np.count_nonzero(changed) > changed.size // 2:
-            before = None
-    where = (ys, xs) if before is None else (ys[changed], xs[changed])
-    samples = np.stack(
-        [
-            ndimage.map_coordinates(b_next[..., c], where, order=1, mode="nearest")
-            for c in range(b_next.shape[2])
-        ],
-        axis=-1,
-    )
-    if before is None:
-        return samples
-    moved = before[2].copy()
-    moved[changed] = samples
+def _moved(b_next: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """``b_next`` (H, W, C) sampled bilinearly at ``(xs, ys)``, rows in parallel.
+
+    Equals ``ndimage.map_coordinates(..., order=1, mode='nearest')`` of every channel bit
+    for bit: the same weights (``w_0 = 1 - f``, ``w_1 = 1 - w_0``), taps clamped to the
+    image and the same order of products and sums (``tests/pipeline/test_shared_trust.py``).
+    """
+    from .._threads import run_ranges
+
+    b_next = np.ascontiguousarray(b_next, dtype=np.float64)
+    moved = np.empty_like(b_next)
+    height = b_next.shape[0]
+    parts = 2 * numba.get_num_threads() if b_next.size >= 1 << 16 else 1
+    bounds = np.linspace(0, height, parts + 1).round().astype(np.int64)
+    ranges = [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
+    run_ranges(_sample_rows, ranges, b_next, xs, ys, moved)
     return moved
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _taps(coordinate, size):
+    """The two taps along one axis and their weights, as ``map_coordinates`` has them."""
+    start = np.floor(coordinate)
+    w0 = 1.0 - (coordinate - start)
+    first = min(max(start, 0.0), size - 1.0)
+    second = min(max(start + 1.0, 0.0), size - 1.0)
+    return np.int64(first), np.int64(second), w0, 1.0 - w0
+
+
+@numba.njit(cache=True, nogil=True)
+def _sample_rows(first, last, image, xs, ys, out):
+    """Rows ``first .. last - 1`` of :func:`_moved`."""
+    height, width, channels = image.shape
+    for y in range(first, last):
+        for x in range(width):
+            y0, y1, wy0, wy1 = _taps(ys[y, x], height)
+            x0, x1, wx0, wx1 = _taps(xs[y, x], width)
+            for c in range(channels):
+                t = 0.0
+                t += image[y0, x0, c] * wy0 * wx0
+                t += image[y0, x1, c] * wy0 * wx1
+                t += image[y1, x0, c] * wy1 * wx0
+                t += image[y1, x1, c] * wy1 * wx1
+                out[y, x, c] = t
 
 
 def trust_anchor(trust: np.ndarray, *, strength: float = ANCHOR_STRENGTH) -> np.ndarray:
