@@ -23,7 +23,7 @@ import numba
 import numpy as np
 from numba import uint64 as U
 
-from stereodeblur.blur._kernels import run_ranges
+from stereodeblur._threads import run_ranges
 from stereodeblur.errors import InputError
 
 
