@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from stereodeblur.deconv import trust as trust_module
 from stereodeblur.deconv.trust import motion_trust, motion_trusts
 
 SHAPE = (36, 44)
@@ -55,23 +54,56 @@ def test_motion_trusts_of_the_same_flow_twice_and_of_none():
     assert motion_trusts(frame, following, []) == []
 
 
-@pytest.mark.parametrize("shape", [(480, 64), (7, 5), (1, 9), (2, 2)])
-@pytest.mark.parametrize("spread", [0.5, 3.0, 30.0])
-def test_the_sampling_equals_map_coordinates_bit_for_bit(shape, spread):
-    """Inside, outside, on pixel centres and on the last row and column."""
-    rng = np.random.default_rng(int(10 * spread) + shape[0])
-    image = rng.random((*shape, 3))
-    y, x = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
-    ys, xs = y + rng.normal(0, spread, shape), x + rng.normal(0, spread, shape)
-    for coordinate, last in ((xs, shape[1] - 1), (ys, shape[0] - 1)):
-        pick = rng.random(shape)
-        coordinate[pick < 0.1] = np.round(coordinate[pick < 0.1])
-        coordinate[pick > 0.95] = last
-    expected = np.stack(
+def _reference_trust(blurred, following, flow, occlusion, sigma, smoothing=2.0):
+    """The trust as first written, with ``ndimage.map_coordinates`` and numpy throughout."""
+    b = blurred if blurred.ndim == 3 else blurred[..., None]
+    b_next = following if following.ndim == 3 else following[..., None]
+    b, b_next = b.astype(np.float64), b_next.astype(np.float64)
+    H, W = b.shape[:2]
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
+    xs, ys = x + flow[..., 0], y + flow[..., 1]
+    known = np.isfinite(xs) & np.isfinite(ys)
+    xs, ys = np.where(known, xs, x), np.where(known, ys, y)
+    moved = np.stack(
         [
-            ndimage.map_coordinates(image[..., c], [ys, xs], order=1, mode="nearest")
-            for c in range(3)
+            ndimage.map_coordinates(b_next[..., c], [ys, xs], order=1, mode="nearest")
+            for c in range(b.shape[2])
         ],
         axis=-1,
     )
-    np.testing.assert_array_equal(trust_module._moved(image, xs, ys), expected)
+    leaves = ~known | (xs < 0) | (xs > W - 1) | (ys < 0) | (ys > H - 1) | occlusion
+    squared = np.where(leaves, 0.0, np.mean((moved - b) ** 2, axis=2))
+    still = np.mean((b_next - b) ** 2, axis=2)
+    share = (~leaves).astype(np.float64)
+    if smoothing > 0:
+        share = ndimage.gaussian_filter(share, smoothing, mode="nearest")
+        squared = ndimage.gaussian_filter(squared, smoothing, mode="nearest")
+        squared = squared / np.maximum(share, 1e-6)
+        still = ndimage.gaussian_filter(still, smoothing, mode="nearest")
+    s2 = 0.5**2 * still + 0.005**2 + (3.0 * sigma) ** 2
+    trust = share / (1.0 + squared / np.maximum(s2, 1e-24))
+    trust[leaves] = 0.0
+    return np.clip(trust, 0.0, 1.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("shape", [(480, 64, 3), (7, 5, 3), (1, 9, 3), (2, 2, 3), (30, 40)])
+@pytest.mark.parametrize("spread", [0.5, 3.0, 30.0])
+def test_the_trust_equals_the_map_coordinates_reference_bit_for_bit(shape, spread):
+    """Samples inside, outside, on pixel centres, on the last row and column; NaN flows."""
+    rng = np.random.default_rng(int(10 * spread) + shape[0])
+    frame = rng.random(shape).astype(np.float32)
+    following = rng.random(shape).astype(np.float32)
+    flow = rng.normal(0, spread, (*shape[:2], 2))
+    y, x = np.mgrid[0 : shape[0], 0 : shape[1]].astype(np.float64)
+    for axis, (grid, last) in enumerate(((x, shape[1] - 1), (y, shape[0] - 1))):
+        pick = rng.random(shape[:2])
+        flow[..., axis][pick < 0.1] = np.round(flow[..., axis][pick < 0.1])
+        flow[..., axis][pick > 0.95] = (last - grid)[pick > 0.95]
+    flow[rng.random(shape[:2]) < 0.02] = np.nan
+    occlusion = rng.random(shape[:2]) < 0.05
+    for smoothing in (0.0, 2.0):
+        expected = _reference_trust(frame, following, flow, occlusion, 0.01, smoothing)
+        (trust,) = motion_trusts(
+            frame, following, [flow], occlusion=occlusion, noise_sigma=0.01, smoothing=smoothing
+        )
+        np.testing.assert_array_equal(trust, expected)

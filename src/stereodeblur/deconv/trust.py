@@ -186,21 +186,14 @@ def motion_trusts(
     if not flows:
         return []
     sigma = estimate_noise_sigma(blurred) if noise_sigma is None else float(noise_sigma)
-    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
     still = np.mean((b_next - b) ** 2, axis=2)
     if smoothing > 0:
         still = ndimage.gaussian_filter(still, smoothing, mode="nearest")
     s2 = relative**2 * still + scale**2 + (3.0 * sigma) ** 2
+    b, b_next = np.ascontiguousarray(b), np.ascontiguousarray(b_next)
     trusts = []
     for flow in flows:
-        xs, ys = x + flow[..., 0], y + flow[..., 1]
-        known = np.isfinite(xs) & np.isfinite(ys)
-        xs, ys = np.where(known, xs, x), np.where(known, ys, y)
-        moved = _moved(b_next, xs, ys)
-        leaves = ~known | (xs < 0) | (xs > W - 1) | (ys < 0) | (ys > H - 1)
-        if occlusion is not None:
-            leaves |= occlusion
-        squared = np.where(leaves, 0.0, np.mean((moved - b) ** 2, axis=2))
+        squared, leaves = _residuals(b, b_next, np.ascontiguousarray(flow), occlusion)
         share = (~leaves).astype(np.float64)
         if smoothing > 0:
             share = ndimage.gaussian_filter(share, smoothing, mode="nearest")
@@ -212,23 +205,28 @@ def motion_trusts(
     return trusts
 
 
-def _moved(b_next: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """``b_next`` (H, W, C) sampled bilinearly at ``(xs, ys)``, rows in parallel.
+def _residuals(b, b_next, flow, occlusion) -> tuple[np.ndarray, np.ndarray]:
+    """``(e^2, leaves)`` per pixel before the window: the mean over channels of
+    ``|B_next(x + f(x)) - B(x)|^2`` (0 where the pixel leaves the view or is occluded) and
+    where it does. Rows in parallel.
 
-    Equals ``ndimage.map_coordinates(..., order=1, mode='nearest')`` of every channel bit
-    for bit: the same weights (``w_0 = 1 - f``, ``w_1 = 1 - w_0``), taps clamped to the
-    image and the same order of products and sums (``tests/pipeline/test_shared_trust.py``).
+    ``B_next`` is sampled bilinearly as ``ndimage.map_coordinates(..., order=1,
+    mode='nearest')`` samples it, bit for bit (the same weights ``w_0 = 1 - f``,
+    ``w_1 = 1 - w_0``, taps clamped to the image, the same order of products and sums), and
+    the mean sums the channels in order, as ``np.mean`` does
+    (``tests/pipeline/test_shared_trust.py``).
     """
     from .._threads import run_ranges
 
-    b_next = np.ascontiguousarray(b_next, dtype=np.float64)
-    moved = np.empty_like(b_next)
-    height = b_next.shape[0]
-    parts = 2 * numba.get_num_threads() if b_next.size >= 1 << 16 else 1
+    height = b.shape[0]
+    squared = np.empty(b.shape[:2])
+    leaves = np.empty(b.shape[:2], bool)
+    occluded = np.zeros((0, 0), bool) if occlusion is None else occlusion
+    parts = 2 * numba.get_num_threads() if b.size >= 1 << 16 else 1
     bounds = np.linspace(0, height, parts + 1).round().astype(np.int64)
     ranges = [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
-    run_ranges(_sample_rows, ranges, b_next, xs, ys, moved)
-    return moved
+    run_ranges(_residual_rows, ranges, b, b_next, flow, occluded, squared, leaves)
+    return squared, leaves
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -242,20 +240,36 @@ def _taps(coordinate, size):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sample_rows(first, last, image, xs, ys, out):
-    """Rows ``first .. last - 1`` of :func:`_moved`."""
-    height, width, channels = image.shape
+def _residual_rows(first, last, b, b_next, flow, occluded, squared, leaves):
+    """Rows ``first .. last - 1`` of :func:`_residuals`."""
+    height, width, channels = b.shape
     for y in range(first, last):
         for x in range(width):
-            y0, y1, wy0, wy1 = _taps(ys[y, x], height)
-            x0, x1, wx0, wx1 = _taps(xs[y, x], width)
+            xs = x + flow[y, x, 0]
+            ys = y + flow[y, x, 1]
+            known = np.isfinite(xs) and np.isfinite(ys)
+            if not known:
+                xs = float(x)
+                ys = float(y)
+            out = not known or xs < 0 or xs > width - 1 or ys < 0 or ys > height - 1
+            if occluded.shape[0] > 0 and occluded[y, x]:
+                out = True
+            leaves[y, x] = out
+            if out:
+                squared[y, x] = 0.0
+                continue
+            y0, y1, wy0, wy1 = _taps(ys, height)
+            x0, x1, wx0, wx1 = _taps(xs, width)
+            total = 0.0
             for c in range(channels):
                 t = 0.0
-                t += image[y0, x0, c] * wy0 * wx0
-                t += image[y0, x1, c] * wy0 * wx1
-                t += image[y1, x0, c] * wy1 * wx0
-                t += image[y1, x1, c] * wy1 * wx1
-                out[y, x, c] = t
+                t += b_next[y0, x0, c] * wy0 * wx0
+                t += b_next[y0, x1, c] * wy0 * wx1
+                t += b_next[y1, x0, c] * wy1 * wx0
+                t += b_next[y1, x1, c] * wy1 * wx1
+                d = t - b[y, x, c]
+                total = d * d if c == 0 else total + d * d
+            squared[y, x] = total / channels
 
 
 def trust_anchor(trust: np.ndarray, *, strength: float = ANCHOR_STRENGTH) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -83,27 +84,34 @@ def frame_trusts(
     window: FrameWindow, view: str, motions, *, noise_sigma: float, bands
 ) -> list[np.ndarray]:
     """:func:`frame_trust` of each of several motions of ``view`` (``bands``: one each, or
-    None), sharing the work (:func:`~stereodeblur.deconv.trust.motion_trusts`)."""
+    None), sharing the work (:func:`~stereodeblur.deconv.trust.motion_trusts`); the trusts
+    towards the preceding frame are computed meanwhile in a thread of their own."""
     from ..deconv.trust import motion_trusts, near_motion_boundaries
 
     blurred = window.blurred(view)
-    following = window.frame(view, window.neighbour)
-    flows = [motion.flow_forward for motion in motions]
-    trusts = motion_trusts(blurred, following, flows, noise_sigma=noise_sigma)
     backward = [i for i, m in enumerate(motions) if m.flow_backward is not None]
-    if backward and window.other is not None:
-        preceding = window.frame(view, window.other)
-        flows = [motions[i].flow_backward for i in backward]
-        for i, trust in zip(
-            backward, motion_trusts(blurred, preceding, flows, noise_sigma=noise_sigma), strict=True
-        ):
-            trusts[i] = np.maximum(trusts[i], trust)
-    out = []
-    for motion, trust, band in zip(motions, trusts, bands, strict=True):
-        if band is None:
-            band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
-        out.append(np.where(band, trust, 1.0).astype(np.float32))
-    return out
+    if window.other is None:
+        backward = []
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="trust") as pool:
+        if backward:
+            preceding = window.frame(view, window.other)
+            flows = [motions[i].flow_backward for i in backward]
+            pending = pool.submit(motion_trusts, blurred, preceding, flows, noise_sigma=noise_sigma)
+        following = window.frame(view, window.neighbour)
+        flows = [motion.flow_forward for motion in motions]
+        trusts = motion_trusts(blurred, following, flows, noise_sigma=noise_sigma)
+        duty_cycle = window.exposure.duty_cycle
+        bands = [
+            near_motion_boundaries(motion.flow_forward, duty_cycle) if band is None else band
+            for motion, band in zip(motions, bands, strict=True)
+        ]
+        if backward:
+            for i, trust in zip(backward, pending.result(), strict=True):
+                trusts[i] = np.maximum(trusts[i], trust)
+    return [
+        np.where(band, trust, 1.0).astype(np.float32)
+        for trust, band in zip(trusts, bands, strict=True)
+    ]
 
 
 def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None, *, noise_sigma=None):
