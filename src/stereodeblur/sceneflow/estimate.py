@@ -202,11 +202,7 @@ def estimate_scene_flow(
     prepared = prepare_frames(images, settings)
     stages.done("census")
     count = settings.num_segments or default_num_segments((height, width))
-    # The matches (OpenCV, which releases the GIL) meanwhile in a thread of their own.
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="matches") as pool:
-        pending = pool.submit(initial_matches, prepared.u8)
-        segments = slic_segments(prepared.segment_image, count)
-        matches = pending.result()
+    matches, segments = _matches_and_superpixels(prepared, count)
     stages.done("initial")  # with the superpixels, computed meanwhile
     graph = segment_graph(segments)
     stages.done("superpixels")
@@ -251,6 +247,15 @@ def estimate_scene_flow(
             **_counts(start, chosen),
         },
     )
+
+
+def _matches_and_superpixels(prepared: PreparedFrames, count: int):
+    """Stages 2 and 3 at once: the initial matches (OpenCV, which releases the GIL) in a
+    thread of their own while the superpixels are computed."""
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="matches") as pool:
+        pending = pool.submit(initial_matches, prepared.u8)
+        segments = slic_segments(prepared.segment_image, count)
+        return pending.result(), segments
 
 
 def refine_selection(
