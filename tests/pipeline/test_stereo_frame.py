@@ -71,7 +71,7 @@ def _count(monkeypatch, scene, trusts=None):
             inside.pop()
 
     def spy_flow(a, b, **kwargs):
-        # The estimator's own (of its 8-bit grey frames) run in threads of its own too.
+        # Not the estimator's own (of its 8-bit grey frames), wherever they run.
         if threading.get_ident() not in inside and a.dtype != np.uint8:
             flows.append((a.tobytes(), b.tobytes()))
         return optical_flow(a, b, **kwargs)

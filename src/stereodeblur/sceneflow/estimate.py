@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import time
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -201,10 +200,10 @@ def estimate_scene_flow(
     stages = _Stages(progress)
     prepared = prepare_frames(images, settings)
     stages.done("census")
+    matches = initial_matches(prepared.u8)
+    stages.done("initial")
     count = settings.num_segments or default_num_segments((height, width))
-    matches, segments = _matches_and_superpixels(prepared, count)
-    stages.done("initial")  # with the superpixels, computed meanwhile
-    graph = segment_graph(segments)
+    graph = segment_graph(slic_segments(prepared.segment_image, count))
     stages.done("superpixels")
     pixels = fit_pixels(camera, graph, matches, settings)
     start = segment_proposals(camera, graph, pixels, settings, rng)
@@ -247,15 +246,6 @@ def estimate_scene_flow(
             **_counts(start, chosen),
         },
     )
-
-
-def _matches_and_superpixels(prepared: PreparedFrames, count: int):
-    """Stages 2 and 3 at once: the initial matches (OpenCV, which releases the GIL) in a
-    thread of their own while the superpixels are computed."""
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="matches") as pool:
-        pending = pool.submit(initial_matches, prepared.u8)
-        segments = slic_segments(prepared.segment_image, count)
-        return pending.result(), segments
 
 
 def refine_selection(
