@@ -15,30 +15,35 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-_pool: ThreadPoolExecutor | None = None
+_pools: dict[int, ThreadPoolExecutor] = {}
 _pool_lock = threading.Lock()
 
 
-def _forget_pool_after_fork() -> None:
+def _forget_pools_after_fork() -> None:
     """A forked child has none of the parent's worker threads: start afresh."""
-    global _pool, _pool_lock
-    _pool = None
+    global _pool_lock
+    _pools.clear()
     _pool_lock = threading.Lock()
 
 
-os.register_at_fork(after_in_child=_forget_pool_after_fork)
+os.register_at_fork(after_in_child=_forget_pools_after_fork)
 
 
 def executor() -> ThreadPoolExecutor:
-    """The shared worker threads, as many as ``numba.get_num_threads()``."""
-    global _pool
+    """The shared worker threads, as many as ``numba.get_num_threads()``.
+
+    numba's thread count is per calling thread (``threads_for`` lowers it for small
+    images; a Dask worker or a background thread may have another), so there is one pool
+    per count, kept for the life of the process: a pool in use by one thread is never shut
+    down by another.
+    """
     threads = numba.get_num_threads()
     with _pool_lock:
-        if _pool is None or _pool._max_workers != threads:
-            if _pool is not None:
-                _pool.shutdown(wait=False)
-            _pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="stereodeblur")
-        return _pool
+        pool = _pools.get(threads)
+        if pool is None:
+            pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="stereodeblur")
+            _pools[threads] = pool
+        return pool
 
 
 def run_ranges(function, ranges, *args) -> list:
