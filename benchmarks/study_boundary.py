@@ -78,6 +78,8 @@ GATES = (
 """Pixel gates of ``R`` (with ``O``), sceneflow only: dense rows where the dense flow
 predicts the neighbouring frames better than the scene flow by more than the trust margin,
 or where the scene flow's trust is below 0.5 and the flows differ by more than X px."""
+DILATED = ("better>0.1~d8", "better>0.25~d8", "better>0.25~d16")
+"""Gates grown by R px (``GATE~dR``; :func:`scene_features`), added after the first results."""
 FIRST_PASS = {
     "gt": ("none", "OAV", "AV", "OV", "OA", "V"),
     "sceneflow": ("none", "OR", "R", "O", "OAV", "gate:better>0.1", "gate:untrusted&disagree>1"),
@@ -219,6 +221,8 @@ def scene_features(scene, motion, blurred) -> tuple[dict, dict]:
     """Features of one scene and source, and the gate masks of :data:`GATES`."""
     import warnings
 
+    from scipy import ndimage
+
     from stereodeblur.deconv.noise import estimate_noise_sigma
     from stereodeblur.deconv.trust import leaves_view, near_motion_boundaries
     from stereodeblur.pipeline.weights import frame_trusts
@@ -267,6 +271,10 @@ def scene_features(scene, motion, blurred) -> tuple[dict, dict]:
         "untrusted&disagree>1": untrusted & (disagree > 1.0),
         "untrusted&disagree>3": untrusted & (disagree > 3.0),
     }
+    for name in DILATED:  # "GATE~dR": GATE grown by R px
+        gate, radius = name.split("~d")
+        grow = ndimage.distance_transform_edt(~masks[gate]) <= float(radius)
+        masks[name] = grow if masks[gate].any() else masks[gate]
     for name, mask in masks.items():
         features[f"gate_share:{name}"] = float(mask[band].mean()) if band.any() else 0.0
     return features, masks
@@ -313,7 +321,7 @@ def run_scene(task) -> dict:
         columns = data.setdefault("columns", {}).setdefault(source, {})
         wanted = list(ABLATIONS[source])
         if source == "sceneflow":
-            wanted += [f"gate:{g}" for g in GATES]
+            wanted += [f"gate:{g}" for g in GATES + DILATED]
         if first_pass:
             wanted = list(FIRST_PASS[source])
         if only:
