@@ -227,6 +227,17 @@ def rules_table(found: list[dict], limit: int = 12) -> list[str]:
     return lines
 
 
+def shown_rules(found: list[dict], limit: int = 12) -> list[dict]:
+    """The rules :func:`rules_table` lists: fixed columns and the best scene rules per source."""
+    out = []
+    for source in SOURCES:
+        mine = [r for r in found if r["source"] == source]
+        out += [r for r in mine if " if " not in r["rule"]]
+        scene = [r for r in mine if " if " in r["rule"] and not r["degenerate"]]
+        out += sorted(scene, key=lambda r: -r["cv_objective"])[:limit]
+    return out
+
+
 def scene_tables(rows) -> list[str]:
     lines = []
     for source in SOURCES:
@@ -297,6 +308,7 @@ def report(rows, seconds: float, command: str) -> tuple[str, dict]:
         "",
     ]
     lines += rules_table(found)
+    summary["rules"] = shown_rules(found)
     lines += ["## Per scene", ""] + scene_tables(rows)
     return "\n".join(lines) + "\n", _finite(summary)
 
