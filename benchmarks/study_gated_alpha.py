@@ -25,8 +25,9 @@ without the gate. The column ``auto-band`` runs the alpha the rule gives with th
 flow's trust over its whole band (``max(alpha_from_sigma, alpha_from_trust)`` from the
 study's features), as a fixed alpha.
 
-Per-scene results are cached as json under ``--work``; ``--report-only`` reads them. The
-report (``benchmarks/study_gated_alpha_report.py``) writes ``--output`` and ``.json``.
+Per-scene results are cached as json under ``--work``; ``--report-only`` reads them (with
+``--note`` a sentence on how the grid was measured). The report
+(``benchmarks/study_gated_alpha_report.py``) writes ``--output`` and ``.json``.
 """
 
 from __future__ import annotations
@@ -221,7 +222,8 @@ def main(argv=None) -> int:
     seconds = time.perf_counter() - start
     import study_gated_alpha_report as reporting  # noqa: PLC0415 (written after the runs began)
 
-    text, summary = reporting.report(rows, seconds, " ".join(sys.argv[1:]), note=args.note)
+    shown = [a for i, a in enumerate(sys.argv[1:]) if "--note" not in sys.argv[i : i + 2]]
+    text, summary = reporting.report(rows, seconds, " ".join(shown), note=args.note)
     output = Path(args.output)
     atomic_write_text(output, text)
     atomic_write_text(output.with_suffix(".json"), json.dumps(summary, indent=1) + "\n")
