@@ -16,8 +16,11 @@ Dask runs a task again on another worker when its worker dies.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import signal
+import threading
 import uuid
 from collections.abc import Iterator, Sequence
 from typing import Protocol
@@ -92,6 +95,34 @@ def _terminate(pool) -> None:
             process.join(timeout=5)
 
 
+@contextlib.contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Ctrl-C and SIGTERM wait until the block is done, then act as they would have.
+
+    Spawning a worker writes its start-up data to a pipe; an interrupt in the middle of that
+    write leaves the child with half of it and a traceback on the terminal.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    arrived: list[int] = []
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {
+        sig: signal.signal(sig, lambda signum, frame: arrived.append(signum)) for sig in signals
+    }
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(arrived):
+            handler = previous[sig]
+            if callable(handler):
+                handler(sig, None)
+            elif handler != signal.SIG_IGN:
+                signal.raise_signal(sig)
+
+
 class PoolExecutor:
     """Tasks in ``workers`` spawned local processes that end when this process ends."""
 
@@ -130,10 +161,11 @@ class PoolExecutor:
             initargs=(threads, os.getpid()),
         )
         try:
-            futures = {
-                pool.submit(process_task, job, index, views, threads=threads): (index, views)
-                for index, views in tasks
-            }
+            with _interrupts_deferred():  # submitting spawns the workers
+                futures = {
+                    pool.submit(process_task, job, index, views, threads=threads): (index, views)
+                    for index, views in tasks
+                }
             for future in as_completed(futures):
                 try:
                     records = future.result()
