@@ -6,8 +6,8 @@ consecutive rows (a *tile*) are therefore stored with the union of their offsets
 offset, one start and sixteen values (zero where a row has no entry there). A product
 then reads sixteen consecutive values of the image per offset, which the compiler turns
 into vector loads and fused multiply-adds; a CSR product gathers one value at a time.
-On the pipeline's 640x480 operators the union holds about 1.2 times the entries, and a
-product takes about half the time of the CSR kernel.
+The union costs some zero entries where neighbouring blurs differ (measurements:
+``benchmarks/README.md``).
 
 Images are planar here, ``(C, columns + 2 margin)`` with zero margins, so that every
 offset's sixteen values are contiguous; :func:`to_planar` and :func:`from_planar`
