@@ -466,6 +466,18 @@ def parse(argv=None):
     return args
 
 
+def run_all(function, tasks, jobs: int) -> list:
+    """``function(task)`` for every task: here, or in ``jobs`` spawned single-threaded processes."""
+    if jobs == 1:
+        return [function(t) for t in tasks]
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(jobs, mp_context=context) as pool:
+        return list(pool.map(function, tasks))
+
+
 def main(argv=None) -> int:
     args = parse(argv)
     work = Path(args.work) / args.size
@@ -474,15 +486,7 @@ def main(argv=None) -> int:
         for kind, seed in scene_list(args.split, args.scenes, args.kinds)
     ]
     start = time.perf_counter()
-    if args.jobs == 1:
-        rows = [run_scene(t) for t in tasks]
-    else:
-        os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-        import multiprocessing
-
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(args.jobs, mp_context=context) as pool:
-            rows = list(pool.map(run_scene, tasks))
+    rows = run_all(run_scene, tasks, args.jobs)
     seconds = time.perf_counter() - start
     text = report(rows, args, seconds)
     output = Path(args.output)

@@ -41,11 +41,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pickle
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -396,15 +394,8 @@ def main(argv=None) -> int:
     if args.report_only:
         rows = [_cached_row(work, kind, seed) for kind, seed, *_ in tasks]
         rows = [r for r in rows if r is not None]
-    elif args.jobs == 1:
-        rows = [run_scene(t) for t in tasks]
     else:
-        os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-        import multiprocessing
-
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(args.jobs, mp_context=context) as pool:
-            rows = list(pool.map(run_scene, tasks))
+        rows = protocol.run_all(run_scene, tasks, args.jobs)
     seconds = time.perf_counter() - start
     text, summary = reporting.report(rows, seconds, " ".join(sys.argv[1:]))
     output = Path(args.output)

@@ -10,10 +10,13 @@ on the other scenes is applied to it. A *pixel gate* is a measured column
 from __future__ import annotations
 
 import math
-import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from calibrate_defaults import code_version  # noqa: E402
 
 SOURCES = ("gt", "sceneflow")
 FULL = {"gt": "OAV", "sceneflow": "OR"}
@@ -262,16 +265,6 @@ def scene_tables(rows) -> list[str]:
             lines.append(f"| {names[i]} | " + " | ".join(cells) + " |")
         lines.append("")
     return lines
-
-
-def code_version() -> str:
-    try:
-        run = dict(capture_output=True, text=True, check=True, cwd=Path(__file__).parent)
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], **run).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], **run).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return commit + (" with uncommitted changes under src/" if dirty.strip() else "")
 
 
 def report(rows, seconds: float, command: str) -> tuple[str, dict]:

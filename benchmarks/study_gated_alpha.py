@@ -34,10 +34,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -210,15 +208,8 @@ def main(argv=None) -> int:
     if args.report_only:
         rows = [_cached(Path(t[4]), t[0], t[1]) for t in tasks]
         rows = [r for r in rows if r is not None]
-    elif args.jobs == 1:
-        rows = [run_scene(t) for t in tasks]
     else:
-        os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-        import multiprocessing
-
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(args.jobs, mp_context=context) as pool:
-            rows = list(pool.map(run_scene, tasks))
+        rows = protocol.run_all(run_scene, tasks, args.jobs)
     seconds = time.perf_counter() - start
     import study_gated_alpha_report as reporting  # noqa: PLC0415 (written after the runs began)
 
