@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .._threads import balanced_ranges, executor, run_ranges
+from .._threads import balanced_ranges, run_ranges
 
 TILE = 16
 """Rows per tile: one AVX-512 vector or two AVX2 vectors of float32."""
@@ -80,41 +80,43 @@ def _largest_offset(indptr, indices):  # pragma: no cover - compiled
     return largest
 
 
-@numba.njit(**_JIT)
-def _count_offsets(first, last, indptr, indices, shift, seen, counts):  # pragma: no cover
-    """``counts[t]``: distinct offsets of tile ``t``, for tiles ``first .. last - 1``.
+@numba.njit(**_JIT, inline="always")
+def _distinct_offsets(t, indptr, indices, shift, seen, out, base):  # pragma: no cover
+    """Tile ``t``'s distinct offsets ``d + shift`` into ``out[base:]``; returns how many.
 
-    ``seen`` (int64, one per possible offset ``d + shift``) holds the last tile that met an
-    offset, plus one; it needs no clearing between tiles.
+    ``seen`` (one per possible ``d + shift``) holds the last tile that met an offset, plus
+    one, so it needs no clearing between tiles.
     """
-    num_rows = indptr.size - 1
+    count = 0
+    for r in range(t * 16, min(indptr.size - 1, t * 16 + 16)):
+        for k in range(indptr[r], indptr[r + 1]):
+            d = np.int64(indices[k]) - r + shift
+            if seen[d] != t + 1:
+                seen[d] = t + 1
+                out[base + count] = d
+                count += 1
+    return count
+
+
+@numba.njit(**_JIT)
+def _count_offsets(first, last, indptr, indices, shift, counts):  # pragma: no cover
+    """``counts[t]``: distinct offsets of tile ``t``, for tiles ``first .. last - 1``."""
+    seen = np.zeros(2 * shift + 1, np.int64)
+    scratch = np.empty(2 * shift + 1, np.int64)
     for t in range(first, last):
-        count = 0
-        for r in range(t * 16, min(num_rows, t * 16 + 16)):
-            for k in range(indptr[r], indptr[r + 1]):
-                d = np.int64(indices[k]) - r + shift
-                if seen[d] != t + 1:
-                    seen[d] = t + 1
-                    count += 1
-        counts[t] = count
+        counts[t] = _distinct_offsets(t, indptr, indices, shift, seen, scratch, 0)
 
 
 @numba.njit(**_JIT)
 def _fill_tiles(
-    first, last, indptr, indices, data, shift, margin, seen, position, tile_ptr, starts, values
+    first, last, indptr, indices, data, shift, margin, tile_ptr, starts, values
 ):  # pragma: no cover - compiled
     """Sorted starts and the values of tiles ``first .. last - 1`` (``values`` zeroed)."""
-    num_rows = indptr.size - 1
+    seen = np.zeros(2 * shift + 1, np.int64)
+    position = np.empty(2 * shift + 1, np.int64)
     for t in range(first, last):
         base = tile_ptr[t]
-        count = 0
-        for r in range(t * 16, min(num_rows, t * 16 + 16)):
-            for k in range(indptr[r], indptr[r + 1]):
-                d = np.int64(indices[k]) - r + shift
-                if seen[d] != t + 1:
-                    seen[d] = t + 1
-                    starts[base + count] = d
-                    count += 1
+        count = _distinct_offsets(t, indptr, indices, shift, seen, starts, base)
         # Insertion sort of the tile's offsets (a few dozen): increasing addresses.
         for i in range(base + 1, base + count):
             value = starts[i]
@@ -125,7 +127,7 @@ def _fill_tiles(
             starts[j + 1] = value
         for i in range(base, base + count):
             position[starts[i]] = i
-        for r in range(t * 16, min(num_rows, t * 16 + 16)):
+        for r in range(t * 16, min(indptr.size - 1, t * 16 + 16)):
             for k in range(indptr[r], indptr[r + 1]):
                 d = np.int64(indices[k]) - r + shift
                 values[position[d], r - t * 16] += data[k]
@@ -143,35 +145,15 @@ def tile_rows(indptr, indices, data, num_cols: int) -> TiledMatrix:
     margin = shift + TILE
     row_ptr = np.asarray(indptr)[np.minimum(np.arange(num_tiles + 1) * TILE, num_rows)]
     ranges = balanced_ranges(row_ptr, 2 * numba.get_num_threads())
-    seen = [np.zeros(2 * shift + 1, np.int64) for _ in ranges]
     counts = np.zeros(num_tiles, np.int64)
-    _each(
-        _count_offsets,
-        [(a, b, indptr, indices, shift, s, counts) for (a, b), s in zip(ranges, seen, strict=True)],
-    )
+    run_ranges(_count_offsets, ranges, indptr, indices, shift, counts)
     tile_ptr = np.zeros(num_tiles + 1, np.int64)
     np.cumsum(counts, out=tile_ptr[1:])
     starts = np.empty(int(tile_ptr[-1]), np.int64)
     values = np.zeros((starts.size, TILE), np.float32)
-    jobs = []
-    for (a, b), buffer in zip(ranges, seen, strict=True):
-        buffer[:] = 0
-        position = np.empty_like(buffer)
-        jobs.append(
-            (a, b, indptr, indices, data, shift, margin, buffer, position, tile_ptr, starts, values)
-        )
-    _each(_fill_tiles, jobs)
+    args = (indptr, indices, data, shift, margin, tile_ptr, starts, values)
+    run_ranges(_fill_tiles, ranges, *args)
     return TiledMatrix(tile_ptr, starts.view(np.uint64), values, margin, num_rows, num_cols)
-
-
-def _each(function, jobs) -> None:
-    """``function(*job)`` for every job, on the package's worker threads."""
-    if len(jobs) == 1:
-        function(*jobs[0])
-        return
-    pool = executor()
-    for future in [pool.submit(function, *job) for job in jobs]:
-        future.result()
 
 
 @numba.njit(**_FAST)

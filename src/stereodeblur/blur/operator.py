@@ -116,9 +116,8 @@ class SparseBlur:
         """
         image = self._check(image)
         n = self.matrix.shape[0]
-        if squared_weights is None:
-            squared = np.ones(n, np.float32)
-        else:
+        squared = None
+        if squared_weights is not None:
             squared = np.asarray(squared_weights)
             if squared.shape != tuple(self.shape):
                 raise ValueError(
@@ -126,10 +125,12 @@ class SparseBlur:
                 )
             squared = np.ascontiguousarray(squared.ravel(), dtype=np.float32)
         dtype = np.result_type(image.dtype, np.float32)
-        flat = np.ascontiguousarray(image.reshape(n, -1), dtype=dtype)
         if dtype != np.float32 or (tiles := self._tiled()) is None:
-            product = self._transposed() @ (squared[:, None] * (self.matrix @ flat))
-            return product.astype(dtype, copy=False).reshape(image.shape)
+            blurred = self.forward(image)
+            if squared is not None:
+                blurred = blurred * squared.reshape(self.shape + (1,) * (image.ndim - 2))
+            return self.adjoint(blurred)
+        flat = np.ascontiguousarray(image.reshape(n, -1), dtype=dtype)
         from ._tiled import padded_planes, tiled_pixels, tiled_product, to_planar
 
         forward, adjoint = tiles
