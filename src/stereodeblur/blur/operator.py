@@ -156,10 +156,26 @@ def merge_rows(base: SparseBlur, other: SparseBlur, mask: np.ndarray) -> SparseB
         raise ValueError(
             f"operators {base.shape}, {other.shape} and mask {mask.shape} must have one shape"
         )
-    from ._select import select_rows
-
+    take = mask.ravel()
     a, b = base.matrix, other.matrix
-    matrix = sp.csr_matrix(select_rows(a, b, mask.ravel()), shape=a.shape)
+    counts_a, counts_b = np.diff(a.indptr), np.diff(b.indptr)
+    keep_a = np.repeat(~take, counts_a)
+    keep_b = np.repeat(take, counts_b)
+    rows = np.concatenate(
+        [
+            np.repeat(np.arange(take.size), counts_a)[keep_a],
+            np.repeat(np.arange(take.size), counts_b)[keep_b],
+        ]
+    )
+    order = np.argsort(rows, kind="stable")
+    indices = np.concatenate([a.indices[keep_a], b.indices[keep_b]])[order]
+    data = np.concatenate([a.data[keep_a], b.data[keep_b]])[order]
+    indptr = np.zeros(take.size + 1, np.int64)
+    np.cumsum(np.where(take, counts_b, counts_a), out=indptr[1:])
+    index_dtype = np.int32 if indptr[-1] < np.iinfo(np.int32).max else np.int64
+    matrix = sp.csr_matrix(
+        (data, indices.astype(index_dtype), indptr.astype(index_dtype)), shape=a.shape
+    )
     return SparseBlur(matrix, base.shape)
 
 
