@@ -17,6 +17,10 @@ from .sceneflow.settings import SceneFlowSettings
 
 __all__ = [
     "ALPHA_MAX",
+    "ALPHA_RULES",
+    "CROSS_VIEW_ALPHAS",
+    "CROSS_VIEW_KEEP",
+    "CROSS_VIEW_STEP",
     "BOUNDARY_MASKS",
     "BOUNDARY_WEIGHTS",
     "DEFAULT_ALPHA",
@@ -56,6 +60,19 @@ DEFAULT_MOTION_SOURCE = "sceneflow"
 # Noise- and trust-driven: README.md "Where the defaults come from" (`bench paper --alpha-sweep`,
 # `benchmarks/calibrate_alpha.py`, raw results in benchmarks/results/calibrate_alpha.txt).
 DEFAULT_ALPHA = "auto"
+# alpha chosen per view by predicting the other view (stereodeblur.pipeline.alpha). Not the
+# default yet: chosen on 24 training scenes at 320x240 (benchmarks/study_alpha_choice.py,
+# results/alpha_choice_train_320x240.md) and reported on the test split there.
+ALPHA_RULES = ("auto", "cross-view")
+# The calibration protocol's grid (issue 12); alpha='cross-view' solves at each of them.
+CROSS_VIEW_ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
+# Training study: the best predictor of the other view is one grid step (x3) below the best
+# alpha on most scenes (mean 0.52 -> 0.25 dB below the best with gt motion, 0.50 -> 0.20 dB
+# with the scene flow, boundary handling 'none').
+CROSS_VIEW_STEP = 1
+# Training study: all pixels instead of the 90 % best predicted ones lost up to 5 dB where
+# occlusions dominate the error (family_0000, gt motion).
+CROSS_VIEW_KEEP = 0.9
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene.
 DEFAULT_BOUNDARY_WEIGHTS = "adaptive"
 
@@ -99,12 +116,14 @@ class DeblurSettings:
         flow (needs ``kernels='displacement'``). See :mod:`stereodeblur.pipeline`.
     num_samples : int
         Time samples over the exposure (paper: N = 70).
-    alpha : float or 'auto'
+    alpha : float, 'auto' or 'cross-view'
         Prior weight of Eq. 6; ``'auto'`` (default) sets it from the noise level of the
         blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`), and with
         ``boundary_weights='adaptive'`` at least to what the share of pixels whose motion
         is not trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`);
-        the paper's is 0.001 (:data:`PAPER_ALPHA`).
+        ``'cross-view'`` deblurs each view at every alpha of :data:`CROSS_VIEW_ALPHAS` and
+        keeps the one chosen by predicting the other view (:mod:`stereodeblur.pipeline.alpha`;
+        needs a scene flow); the paper's is 0.001 (:data:`PAPER_ALPHA`).
     num_irls, num_cg : int
         Iteration counts (paper: 10, 25).
     num_segments : int or None
@@ -161,14 +180,15 @@ class DeblurSettings:
         _check_count("num_segments", self.num_segments, SEGMENTS_RANGE, optional=True)
         if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
             raise InputError(f"seed must be a whole number, got {self.seed!r}")
-        if self.alpha != "auto":
+        if self.alpha not in ALPHA_RULES:
             if isinstance(self.alpha, str | bool) or not (
                 isinstance(self.alpha, numbers.Real)
                 and math.isfinite(self.alpha)
                 and 0 < self.alpha <= ALPHA_MAX
             ):
                 raise InputError(
-                    f"alpha must be 'auto' or in (0, {ALPHA_MAX:g}], got {self.alpha!r}",
+                    f"alpha must be 'auto', 'cross-view' or in (0, {ALPHA_MAX:g}], "
+                    f"got {self.alpha!r}",
                     parameter="alpha",
                 )
         if self.boundary_weights not in BOUNDARY_WEIGHTS:

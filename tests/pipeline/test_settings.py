@@ -44,7 +44,7 @@ def test_num_segments_overrides_the_estimators():
         ("num_cg", 0, r"num_cg must be a whole number in 1\.\.1000"),
         ("num_irls", 1001, r"in 1\.\.1000"),
         ("num_segments", 10**6, r"in 1\.\.100000"),
-        ("alpha", 1e300, r"alpha must be 'auto' or in \(0, 1\]"),
+        ("alpha", 1e300, r"alpha must be 'auto', 'cross-view' or in \(0, 1\]"),
         ("sceneflow", {"num_segments": 3}, "SceneFlowSettings"),
     ],
 )

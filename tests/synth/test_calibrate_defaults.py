@@ -33,8 +33,10 @@ def _row(runner, name, default, paper, best):
 
 def test_columns_cover_the_protocol(runner):
     keys = [(c.motion_source, c.key) for c in runner.columns_for(("gt", "sceneflow"))]
-    assert len(keys) == 2 * (2 + len(runner.ALPHAS)) + 1
+    assert len(keys) == 2 * (3 + len(runner.ALPHAS)) + 1
     assert ("initial-flow", "monocular") in keys and ("sceneflow", "paper") in keys
+    candidate = [c for c in runner.columns_for(("gt",)) if c.key == runner.CANDIDATE][0]
+    assert candidate.settings().alpha == "cross-view"
     assert ("initial-flow", "monocular") not in [
         (c.motion_source, c.key) for c in runner.columns_for(("gt",))
     ]
@@ -55,6 +57,16 @@ def test_checks_pass_and_fail_on_the_issue_limits(runner):
     exact = [_row(runner, f"e{i}", 30.0, 29.0, 30.0) for i in range(4)]
     far = good + exact + [_row(runner, "d", 20.0, 19.0, 21.6)]  # mean gap 0.38 dB
     assert [ok for _, ok, _ in runner.checks(far, ("gt",))] == [True, False, True]
+
+
+def test_the_candidate_is_checked_like_the_default(runner):
+    rows = [_row(runner, "a", 30.0, 30.2, 30.3), _row(runner, "b", 25.0, 24.0, 25.4)]
+    for row, psnr in zip(rows, (28.0, 25.3), strict=True):
+        row["columns"][f"gt/{runner.CANDIDATE}"] = {"psnr": psnr, "alpha": 1e-3}
+    assert all(ok for _, ok, _ in runner.checks(rows, ("gt",)))
+    candidate = runner.checks(rows, ("gt",), runner.CANDIDATE)
+    assert [ok for _, ok, _ in candidate] == [False, False, False]  # 2.3 dB off on "a"
+    assert all(runner.CANDIDATE in name for name, _, _ in candidate)
 
 
 def test_scene_lists_follow_the_split(runner):

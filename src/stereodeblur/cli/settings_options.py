@@ -14,8 +14,8 @@ types before anything is read or allocated:
   before they are merged); 1000, 14 times the paper's N = 70, is past any gain.
 - ``--irls`` and ``--cg`` in 1..1000: 0 iterations return the input unchanged; the paper
   uses 10 and 25, and each IRLS iteration keeps its weights (one float per pixel).
-- ``--alpha`` ``auto`` or in (0, 1]: the prior weight of Eq. 6 for images in [0, 1]; at 1
-  the prior already outweighs the data term, beyond it the result is flat.
+- ``--alpha`` ``auto``, ``cross-view`` or in (0, 1]: the prior weight of Eq. 6 for images in
+  [0, 1]; at 1 the prior already outweighs the data term, beyond it the result is flat.
 - ``--segments`` in 1..100000 superpixels.
 """
 
@@ -26,7 +26,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from ..settings import ALPHA_MAX
+from ..settings import ALPHA_MAX, ALPHA_RULES
 from ..settings import ITERATIONS_RANGE as ITERATIONS
 from ..settings import SAMPLES_RANGE as SAMPLES
 from ..settings import SEGMENTS_RANGE as SEGMENTS
@@ -40,15 +40,19 @@ def _settings_module():
 
 
 def alpha(text: str) -> float | str:
-    """Option type of ``--alpha``: ``'auto'`` or a number in (0, 1]."""
-    if text == "auto":
+    """Option type of ``--alpha``: ``'auto'``, ``'cross-view'`` or a number in (0, 1]."""
+    if text in ALPHA_RULES:
         return text
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a number, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected 'auto', 'cross-view' or a number, got {text!r}"
+        ) from None
     if not 0 < value <= ALPHA_MAX:
-        raise argparse.ArgumentTypeError(f"must be 'auto' or in (0, {ALPHA_MAX:g}], got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto', 'cross-view' or in (0, {ALPHA_MAX:g}], got {text!r}"
+        )
     return value
 
 
@@ -89,8 +93,9 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "alpha",
             "--alpha",
-            "prior weight in (0, 1], or 'auto': from the input's noise level (default; "
-            "paper: 0.001)",
+            "prior weight in (0, 1]; 'auto': from the input's noise level (default); "
+            "'cross-view': the grid alpha that best predicts the other view, one step up "
+            "(6 solves per view; paper: 0.001)",
             type=alpha,
             metavar="ALPHA",
         ),

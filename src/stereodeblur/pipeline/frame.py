@@ -6,15 +6,18 @@ both views; :func:`deblur_frame` is the same for one view.
 
 from __future__ import annotations
 
+import copy
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..deconv.irls import DeblurResult, deblur_irls
+from ..errors import InputError
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import DeblurSettings
+from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
+from .alpha import OtherView, border_of, choose, other_view, prediction_error
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .operator import view_operator
 from .weights import DataTerms, data_terms
@@ -103,21 +106,35 @@ def deblur_view(
     weights: np.ndarray | None = None,
     timings: dict | None = None,
     progress: ProgressCallback | None = None,
+    operator=None,
+    other: OtherView | None = None,
 ) -> FrameResult:
     """Deblur one view of ``window`` with its ``motion``: operator, data terms, solve.
 
     ``timings``: seconds of the stages before (the motion's), kept in the result's.
+    ``operator``: the view's :class:`~.operator.ViewOperator`, if already built;
+    ``other``: the other view, which ``alpha='cross-view'`` predicts.
     """
     view, timings = motion.view, dict(timings or {})
     check_motion(motion, window, view)
-    start = time.perf_counter()
-    report(progress, f"blur operator ({settings.kernels})")
-    operator = view_operator(motion, window.exposure, settings)
-    timings["operator"] = time.perf_counter() - start
+    if operator is None:
+        start = time.perf_counter()
+        report(progress, f"blur operator ({settings.kernels})")
+        operator = view_operator(motion, window.exposure, settings)
+        timings["operator"] = time.perf_counter() - start
     start = time.perf_counter()  # the data terms count as part of the deconvolution
-    terms = data_terms(scene, window, view, operator, settings)
     blurred = window.blurred(view)
-    result = solve(blurred, operator.operator, terms, settings, weights=weights, progress=progress)
+    if settings.alpha == "cross-view":
+        if other is None:
+            raise InputError("alpha='cross-view' needs the other view", parameter="alpha")
+        terms, result = _cross_view_solve(
+            scene, window, view, operator, settings, other, weights, progress
+        )
+    else:
+        terms = data_terms(scene, window, view, operator, settings)
+        result = solve(
+            blurred, operator.operator, terms, settings, weights=weights, progress=progress
+        )
     timings["deconvolution"] = time.perf_counter() - start
     return FrameResult(
         window.index,
@@ -130,6 +147,23 @@ def deblur_view(
         terms.steps,
         terms.trust,
     )
+
+
+def _cross_view_solve(scene, window, view, operator, settings, other, weights, progress):
+    """Solve at every alpha of :data:`CROSS_VIEW_ALPHAS`; keep the one chosen by
+    predicting ``other`` (:mod:`.alpha`). Returns its data terms and result."""
+    fixed = replace(settings, alpha=CROSS_VIEW_ALPHAS[0])
+    base = data_terms(scene, window, view, operator, fixed)
+    blurred = window.blurred(view)
+    border = border_of(blurred.shape[1])
+    runs, errors = [], []
+    for alpha in CROSS_VIEW_ALPHAS:
+        report(progress, f"alpha {alpha:g}")
+        terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
+        result = solve(blurred, operator.operator, terms, fixed, weights=weights, progress=progress)
+        errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
+        runs.append((terms, result))
+    return runs[choose(errors)]
 
 
 def deblur_frame(
@@ -150,6 +184,17 @@ def deblur_frame(
     """
     settings = settings or DeblurSettings()
     (view,) = check_views((view,))
+    if settings.alpha == "cross-view":  # both views' motion and operators
+        if motion is not None or weights is not None:
+            raise InputError(
+                "alpha='cross-view' computes the motion of both views itself: "
+                "leave motion and weights unset",
+                parameter="alpha",
+            )
+        stereo = deblur_stereo_frame(
+            scene, index, views=(view,), settings=settings, progress=progress
+        )
+        return stereo.frames[view]
     progress = prefixed(progress, f"frame {index} {view}: ")
     start = time.perf_counter()
     check_gt(scene, index, settings, (view,), motion=motion is None)
@@ -182,23 +227,36 @@ def deblur_stereo_frame(
     """
     settings = settings or DeblurSettings()
     views = check_views(views)
+    cross_view = settings.alpha == "cross-view"
+    needed = VIEWS if cross_view else views  # alpha='cross-view' predicts the other view
     timings = {}
     start = time.perf_counter()
-    check_gt(scene, index, settings, views)
-    window = read_window(scene, index, views, settings, estimate=sceneflow is None)
+    check_gt(scene, index, settings, needed)
+    window = read_window(scene, index, needed, settings, estimate=sceneflow is None)
     timings["read"] = time.perf_counter() - start
     start = time.perf_counter()
     report(progress, f"frame {index}: motion ({settings.motion_source})")
     motion = stereo_motion(
         scene,
         window,
-        views,
+        needed,
         settings,
         sceneflow=sceneflow,
         progress=prefixed(progress, f"frame {index}: "),
     )
     timings["motion"] = time.perf_counter() - start
     share = {"motion": sum(timings.values()) / len(views)}
+    operators, seconds, others = {}, {}, {}
+    if cross_view:  # both operators first: each view's choice blurs with the other's
+        for view in VIEWS:
+            start = time.perf_counter()
+            report(progress, f"frame {index} {view}: blur operator ({settings.kernels})")
+            operators[view] = view_operator(motion.views[view], window.exposure, settings)
+            seconds[view] = {"operator": time.perf_counter() - start}
+        for view, other in zip(VIEWS, VIEWS[::-1], strict=True):
+            others[view] = other_view(
+                operators[other], motion.views[other], window.blurred(other), other
+            )
     frames = {}
     for view in views:
         frames[view] = deblur_view(
@@ -206,7 +264,9 @@ def deblur_stereo_frame(
             window,
             motion.views[view],
             settings,
-            timings=share,
+            timings=share | seconds.get(view, {}),
             progress=prefixed(progress, f"frame {index} {view}: "),
+            operator=operators.get(view),
+            other=others.get(view),
         )
     return StereoFrameResult(index, frames, motion, timings)

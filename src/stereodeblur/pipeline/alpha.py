@@ -1,0 +1,96 @@
+"""Prior weight chosen per view by cross-view prediction (``alpha='cross-view'``).
+
+The view is deblurred at every alpha of :data:`~stereodeblur.settings.CROSS_VIEW_ALPHAS`.
+Each solution is carried to the other view through that view's disparity, blurred with
+the other view's operator and compared with the other view's blurred frame, a held-out
+observation with its own noise and its own model error. Pixels the other view cannot
+see (occlusions, the image edge) give the largest errors, so only the smallest
+:data:`~stereodeblur.settings.CROSS_VIEW_KEEP` of the per-pixel errors count. The
+prediction is made in the blurred domain, where the blur hides the errors that alpha
+suppresses, so it prefers too little regularisation. The choice is therefore taken
+:data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor
+(``benchmarks/study_alpha_choice.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import map_coordinates
+
+from ..errors import InputError
+from ..settings import CROSS_VIEW_KEEP, CROSS_VIEW_STEP
+
+
+@dataclass(frozen=True)
+class OtherView:
+    """What a view's alpha choice predicts: the other view's blurred frame.
+
+    Parameters
+    ----------
+    operator : SparseBlur
+        The other view's blur operator.
+    blurred : ndarray, shape (H, W) or (H, W, C)
+        The other view's blurred frame.
+    disparity : ndarray, float, shape (H, W)
+        The other view's disparity at the frame's centre (px, positive).
+    direction : int
+        +1 if the other view is the right one (its pixel ``u`` sees the left view's
+        ``u + d``), -1 if it is the left one.
+    """
+
+    operator: object
+    blurred: np.ndarray
+    disparity: np.ndarray
+    direction: int
+
+
+def other_view(view_operator, motion, blurred: np.ndarray, view: str) -> OtherView:
+    """The :class:`OtherView` made of view ``view``'s operator, motion and blurred frame,
+    for the choice of the view opposite to it."""
+    if motion.sceneflow is None:
+        raise InputError(
+            "alpha='cross-view' needs a scene flow (motion_source 'sceneflow' or 'gt'), "
+            "not 'initial-flow'",
+            parameter="alpha",
+        )
+    direction = 1 if view == "right" else -1
+    return OtherView(view_operator.operator, blurred, motion.sceneflow.disparity(), direction)
+
+
+def warp_to_other(image: np.ndarray, other: OtherView) -> np.ndarray:
+    """``image`` resampled on the other view's grid at ``u + direction * d(u)`` (bilinear,
+    edge pixels repeated), float64."""
+    height, width = other.disparity.shape
+    rows, cols = np.mgrid[0:height, 0:width].astype(np.float64)
+    cols += other.direction * other.disparity
+    planes = image[..., None] if image.ndim == 2 else image
+    out = np.empty(planes.shape, np.float64)
+    for c in range(planes.shape[-1]):
+        out[..., c] = map_coordinates(
+            planes[..., c].astype(np.float64), [rows, cols], order=1, mode="nearest"
+        )
+    return out.reshape(image.shape)
+
+
+def prediction_error(image: np.ndarray, other: OtherView, *, border: int) -> float:
+    """Mean squared error of the other view's blurred frame predicted from ``image``,
+    over the :data:`CROSS_VIEW_KEEP` smallest per-pixel errors, ``border`` px excluded."""
+    predicted = other.operator.forward(warp_to_other(image, other))
+    error = (predicted - np.asarray(other.blurred, np.float64)) ** 2
+    if error.ndim == 3:
+        error = error.mean(axis=-1)
+    error = np.sort(error[border:-border, border:-border], axis=None)
+    return float(error[: max(1, int(CROSS_VIEW_KEEP * error.size))].mean())
+
+
+def choose(errors) -> int:
+    """Index of the chosen alpha: :data:`CROSS_VIEW_STEP` above the best predictor, within
+    the grid."""
+    return min(int(np.argmin(errors)) + CROSS_VIEW_STEP, len(errors) - 1)
+
+
+def border_of(width: int) -> int:
+    """Pixels left out at the image edge: 2.5 % of the width, at least 4 (as the benches)."""
+    return max(4, round(0.025 * width))

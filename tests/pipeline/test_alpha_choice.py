@@ -1,0 +1,114 @@
+"""alpha='cross-view': each view's alpha chosen by predicting the other view."""
+
+import numpy as np
+import pytest
+
+from stereodeblur.cli.settings_options import alpha as alpha_option
+from stereodeblur.errors import InputError
+from stereodeblur.io.scene import open_scene
+from stereodeblur.pipeline import DeblurSettings, deblur_frame, deblur_stereo_frame
+from stereodeblur.pipeline.alpha import OtherView, choose, prediction_error, warp_to_other
+from stereodeblur.settings import CROSS_VIEW_ALPHAS, CROSS_VIEW_KEEP
+from stereodeblur.synth.objects import make_object_scene
+from stereodeblur.synth.planar import write_rendered_scene
+
+FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8}
+
+
+class _Identity:
+    def forward(self, image):
+        return image
+
+
+def _texture(shape, seed=0):
+    rng = np.random.default_rng(seed)
+    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
+    return 0.5 + 0.2 * np.sin(0.3 * cols + 0.2 * rows) + 0.05 * rng.standard_normal(shape)
+
+
+def test_warp_takes_the_left_view_to_the_right_and_back():
+    left = _texture((20, 40))
+    disparity = np.full((20, 40), 3.0)
+    right = np.roll(left, -3, axis=1)  # x_R(u) = x_L(u + 3)
+    to_right = warp_to_other(left, OtherView(_Identity(), right, disparity, +1))
+    np.testing.assert_allclose(to_right[:, :-3], right[:, :-3], atol=1e-12)
+    to_left = warp_to_other(right, OtherView(_Identity(), left, disparity, -1))
+    np.testing.assert_allclose(to_left[:, 3:], left[:, 3:], atol=1e-12)
+
+
+def test_warp_interpolates_fractional_disparities_of_colour_images():
+    left = np.stack([_texture((16, 30), seed) for seed in range(3)], axis=-1)
+    disparity = np.full((16, 30), 2.5)
+    warped = warp_to_other(left, OtherView(_Identity(), left, disparity, +1))
+    expected = 0.5 * (np.roll(left, -2, axis=1) + np.roll(left, -3, axis=1))
+    np.testing.assert_allclose(warped[:, :-3], expected[:, :-3], atol=1e-12)
+
+
+def test_prediction_error_leaves_out_the_worst_pixels():
+    left = _texture((30, 40))
+    disparity = np.full((30, 40), 2.0)
+    right = np.roll(left, -2, axis=1)
+    other = OtherView(_Identity(), right, disparity, +1)
+    assert prediction_error(left, other, border=4) < 1e-20
+    occluded = right.copy()
+    occluded[10:12, 10:20] += 1.0  # 20 of 22 x 32 pixels: within the share left out
+    assert (1 - CROSS_VIEW_KEEP) * 22 * 32 > 20
+    assert prediction_error(left, OtherView(_Identity(), occluded, disparity, +1), border=4) < 1e-20
+    noisy = right + 0.1
+    assert prediction_error(left, OtherView(_Identity(), noisy, disparity, +1), border=4) == (
+        pytest.approx(0.01)
+    )
+
+
+def test_the_choice_is_one_step_above_the_best_predictor_within_the_grid():
+    assert choose([3.0, 2.0, 1.0, 2.0, 3.0, 4.0]) == 3
+    assert choose([5.0, 4.0, 3.0, 2.0, 1.5, 1.0]) == 5
+    assert choose([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]) == 1
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    rendered = make_object_scene("squares", size=(64, 48), num_samples=8)
+    return open_scene(write_rendered_scene(rendered, tmp_path_factory.mktemp("s") / "squares"))
+
+
+@pytest.mark.parametrize("source", ["gt", "sceneflow"])
+def test_each_view_takes_the_grid_solution_it_chose(scene, source):
+    chosen = deblur_stereo_frame(
+        scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha="cross-view")
+    )
+    for view, frame in chosen.frames.items():
+        assert frame.alpha in CROSS_VIEW_ALPHAS
+        fixed = deblur_stereo_frame(
+            scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha=frame.alpha)
+        )
+        np.testing.assert_array_equal(frame.image, fixed.frames[view].image)
+
+
+def test_one_view_is_the_stereo_frames_view(scene):
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="cross-view")
+    right = deblur_frame(scene, 1, view="right", settings=settings)
+    stereo = deblur_stereo_frame(scene, 1, settings=settings)
+    assert right.alpha == stereo.frames["right"].alpha
+    np.testing.assert_array_equal(right.image, stereo.frames["right"].image)
+
+
+def test_the_monocular_path_cannot_predict_the_other_view(scene):
+    settings = DeblurSettings(
+        **FAST, motion_source="initial-flow", kernels="displacement", alpha="cross-view"
+    )
+    with pytest.raises(InputError, match="needs a scene flow"):
+        deblur_stereo_frame(scene, 1, settings=settings)
+
+
+def test_given_motion_is_refused(scene):
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="cross-view")
+    with pytest.raises(InputError, match="motion of both views itself"):
+        deblur_frame(scene, 1, settings=settings, motion=object())
+
+
+def test_the_option_accepts_the_rule():
+    assert alpha_option("cross-view") == "cross-view"
+    assert DeblurSettings(alpha="cross-view").alpha == "cross-view"
+    with pytest.raises(InputError, match="'auto', 'cross-view' or in"):
+        DeblurSettings(alpha="crossview")
