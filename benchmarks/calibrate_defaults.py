@@ -21,6 +21,8 @@ estimated), the motion computed once per scene and source
 
 - ``default``: :class:`~stereodeblur.pipeline.DeblurSettings` defaults;
 - ``paper``: the paper's settings, ``alpha=0.001``, ``boundary_weights='none'``;
+- ``cross-view``: the candidate :data:`CANDIDATE`, ``alpha='cross-view'`` with the default
+  boundary handling (it computes the motion of both views itself), checked like the default;
 - ``alpha=A`` for A in :data:`ALPHAS`, the default boundary handling;
 
 and once with the monocular path with the same defaults (``motion_source='initial-flow',

@@ -60,9 +60,10 @@ DEFAULT_MOTION_SOURCE = "sceneflow"
 # Noise- and trust-driven: README.md "Where the defaults come from" (`bench paper --alpha-sweep`,
 # `benchmarks/calibrate_alpha.py`, raw results in benchmarks/results/calibrate_alpha.txt).
 DEFAULT_ALPHA = "auto"
-# alpha chosen per view by predicting the other view (stereodeblur.pipeline.alpha). Not the
-# default yet: chosen on 24 training scenes at 320x240 (benchmarks/study_alpha_choice.py,
-# results/alpha_choice_train_320x240.md) and reported on the test split there.
+# 'cross-view': alpha chosen per view by predicting the other view (stereodeblur.pipeline.alpha),
+# fitted on 24 training scenes (benchmarks/results/alpha_choice_train_320x240.md). Not the
+# default: on the 40 test scenes it is 0.37 / 0.34 dB below the best alpha on average (auto:
+# 0.56 / 0.57) but 2.3 / 2.4 dB at worst, at 3.3x the time (README.md, issue 12 table).
 ALPHA_RULES = ("auto", "cross-view")
 # The calibration protocol's grid (issue 12); alpha='cross-view' solves at each of them.
 CROSS_VIEW_ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -174,6 +175,12 @@ class DeblurSettings:
             )
         if self.motion_source == "initial-flow" and self.kernels != "displacement":
             raise InputError("motion_source='initial-flow' needs kernels='displacement'")
+        if self.motion_source == "initial-flow" and self.alpha == "cross-view":
+            raise InputError(
+                "alpha='cross-view' needs a disparity: motion_source 'sceneflow' or 'gt', "
+                "not 'initial-flow'",
+                parameter="alpha",
+            )
         _check_count("num_samples", self.num_samples, SAMPLES_RANGE)
         _check_count("num_irls", self.num_irls, ITERATIONS_RANGE)
         _check_count("num_cg", self.num_cg, ITERATIONS_RANGE)

@@ -55,6 +55,14 @@ def test_option_limits_are_checked_before_the_run(tiny_scene, tmp_path, capsys, 
     refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=fragments)
 
 
+def test_cross_view_alpha_without_a_disparity_is_refused(tiny_scene, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["deblur", tiny_scene, "-o", out, "--motion-source", "initial-flow"]
+    argv += ["--kernels", "displacement", "--alpha", "cross-view"]
+    fragments = ["--alpha", "cross-view", "initial-flow"]
+    refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=fragments)
+
+
 def test_huge_frame_range_is_refused_without_expanding_it(tiny_scene, tmp_path, capsys):
     out = tmp_path / "out"
     argv = ["deblur", tiny_scene, "-o", out, "--frames", "0:100000000000"]

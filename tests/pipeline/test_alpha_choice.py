@@ -93,12 +93,9 @@ def test_one_view_is_the_stereo_frames_view(scene):
     np.testing.assert_array_equal(right.image, stereo.frames["right"].image)
 
 
-def test_the_monocular_path_cannot_predict_the_other_view(scene):
-    settings = DeblurSettings(
-        **FAST, motion_source="initial-flow", kernels="displacement", alpha="cross-view"
-    )
-    with pytest.raises(InputError, match="needs a scene flow"):
-        deblur_stereo_frame(scene, 1, settings=settings)
+def test_the_monocular_path_cannot_predict_the_other_view():
+    with pytest.raises(InputError, match="needs a disparity"):
+        DeblurSettings(motion_source="initial-flow", kernels="displacement", alpha="cross-view")
 
 
 def test_given_motion_is_refused(scene):
