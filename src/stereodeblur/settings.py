@@ -62,8 +62,9 @@ DEFAULT_MOTION_SOURCE = "sceneflow"
 DEFAULT_ALPHA = "auto"
 # 'cross-view': alpha chosen per view by predicting the other view (stereodeblur.pipeline.alpha),
 # fitted on 24 training scenes (benchmarks/results/alpha_choice_train_320x240.md). Not the
-# default: on the 40 test scenes it is 0.37 / 0.34 dB below the best alpha on average (auto:
-# 0.56 / 0.57) but 2.3 / 2.4 dB at worst, at 3.3x the time (README.md, issue 12 table).
+# default: on the 40 test scenes at 320x240 it is 0.37 / 0.34 dB below the best alpha on average
+# (auto: 0.56 / 0.57) but 2.3 / 2.4 dB at worst; at 640x480 no better than auto; 3.3x the time
+# (README.md, "The defaults on scenes they were not tuned on").
 ALPHA_RULES = ("auto", "cross-view")
 # The calibration protocol's grid (issue 12); alpha='cross-view' solves at each of them.
 CROSS_VIEW_ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
