@@ -56,15 +56,13 @@ def child(scene_path: str, output: str, alpha: str | None = None) -> None:
 
     scene = open_scene(scene_path)
     stages = {}
-    if alpha is not None:
-        from stereodeblur.cli.settings_options import alpha as alpha_option
+    if hasattr(pipeline, "deblur_stereo_frame"):
+        settings = None
+        if alpha is not None:
+            from stereodeblur.cli.settings_options import alpha as alpha_option
 
-        settings = pipeline.DeblurSettings(alpha=alpha_option(alpha))
+            settings = pipeline.DeblurSettings(alpha=alpha_option(alpha))
         stereo = pipeline.deblur_stereo_frame(scene, INDEX, views=VIEWS, settings=settings)
-        frames = stereo.frames
-        stages.update(stereo.timings)
-    elif hasattr(pipeline, "deblur_stereo_frame"):
-        stereo = pipeline.deblur_stereo_frame(scene, INDEX, views=VIEWS)
         frames = stereo.frames
         stages.update(stereo.timings)
     else:  # the code before the frame window: one deblur_frame per view

@@ -51,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -96,11 +97,6 @@ def columns_for(motions) -> list[Column]:
     if "sceneflow" in motions:  # the estimated-motion method it competes with
         out.append(Column("monocular", "initial-flow"))
     return out
-
-
-def border_of(width: int) -> int:
-    """The benches' PSNR border: 2.5 % of the width, at least 4 px."""
-    return max(4, round(0.025 * width))
 
 
 def scene_list(split: str, count: int, kinds) -> list[tuple[str, int]]:

@@ -31,6 +31,8 @@ import calibrate_defaults as protocol  # noqa: E402
 GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 SOURCES = ("gt", "sceneflow")
 HANDLINGS = ("adaptive", "none")
+KEEPS = (0.9, 1.0)
+"""Shares of the best-predicted pixels the cross-view costs are kept for."""
 
 
 def _disparity(motion) -> np.ndarray:
@@ -93,36 +95,6 @@ def run_scene(task) -> str:
     return root.name
 
 
-def warp_to(images: np.ndarray, disparity: np.ndarray, direction: int) -> np.ndarray:
-    """``images`` of one view resampled on the other view's grid at ``u + direction * d(u)``
-    (``d``: the other view's disparity; +1 takes left images to the right view)."""
-    from scipy.ndimage import map_coordinates
-
-    height, width = disparity.shape
-    rows, cols = np.mgrid[0:height, 0:width].astype(np.float32)
-    cols = cols + direction * disparity
-    out = np.empty_like(images)
-    for i in np.ndindex(images.shape[:-3]):
-        for c in range(images.shape[-1]):
-            out[i + (..., c)] = map_coordinates(
-                images[i + (..., c)], [rows, cols], order=1, mode="nearest"
-            )
-    return out
-
-
-def trimmed_costs(predictions, blurred, *, border: int, keeps=(0.9, 1.0)) -> dict:
-    """Mean squared prediction error per prediction, over the ``keep`` smallest pixels."""
-    out = {}
-    for keep in keeps:
-        costs = []
-        for prediction in predictions:
-            error = ((prediction - blurred) ** 2).mean(axis=-1)
-            error = np.sort(error[border:-border, border:-border].ravel())
-            costs.append(float(error[: int(keep * error.size)].mean()))
-        out[f"{keep:g}"] = costs
-    return out
-
-
 def cross_view_costs(scene, out: Path, source: str) -> None:
     """How well each view's solutions predict the *other* view's blurred frame, per alpha:
     ``|| A_other W x(alpha) - b_other ||^2`` (trimmed), and their own, ``|| A x - b ||^2``;
@@ -130,9 +102,16 @@ def cross_view_costs(scene, out: Path, source: str) -> None:
     import json
 
     from stereodeblur.pipeline import DeblurSettings
+    from stereodeblur.pipeline.alpha import trimmed_error, warp_to_other
     from stereodeblur.pipeline.motion import stereo_motion
     from stereodeblur.pipeline.operator import view_operator
     from stereodeblur.pipeline.window import read_window
+
+    def costs(predictions, blurred) -> dict:
+        return {
+            f"{keep:g}": [trimmed_error(p, blurred, border=border, keep=keep) for p in predictions]
+            for keep in KEEPS
+        }
 
     todo = [h for h in HANDLINGS if not (out / f"{source}_{h}_cross.json").is_file()]
     if not todo:
@@ -153,13 +132,11 @@ def cross_view_costs(scene, out: Path, source: str) -> None:
         for view, other, direction in (("left", "right", 1), ("right", "left", -1)):
             suffix = "" if view == "left" else "_right"
             images = np.load(out / f"{source}_{handling}{suffix}.npz")["images"][: len(GRID)]
-            warped = warp_to(images, disparity[other], direction).astype(np.float64)
+            warped = [warp_to_other(image, disparity[other], direction) for image in images]
             predictions = [operators[other].forward(image) for image in warped]
-            blurred = window.blurred(other).astype(np.float64)
-            data[f"{view}_to_{other}"] = trimmed_costs(predictions, blurred, border=border)
+            data[f"{view}_to_{other}"] = costs(predictions, window.blurred(other))
             own = [operators[view].forward(image.astype(np.float64)) for image in images]
-            blurred = window.blurred(view).astype(np.float64)
-            data[f"{view}_own"] = trimmed_costs(own, blurred, border=border)
+            data[f"{view}_own"] = costs(own, window.blurred(view))
         path = out / f"{source}_{handling}_cross.json"
         atomic = path.with_suffix(".tmp")
         atomic.write_text(json.dumps(data, indent=1))

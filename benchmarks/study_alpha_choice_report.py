@@ -23,7 +23,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import calibrate_defaults as protocol  # noqa: E402
-from study_alpha_choice import GRID, HANDLINGS, SOURCES, warp_to  # noqa: E402
+from study_alpha_choice import GRID, HANDLINGS, SOURCES  # noqa: E402
+
+from stereodeblur.pipeline.alpha import warp_to_other  # noqa: E402
 
 PAPER_INDEX = GRID.index(1e-3)
 
@@ -39,7 +41,7 @@ def stereo_consistent(d: dict) -> int:
     """The alpha whose left and right solutions agree best through the right disparity
     (mean of the 90 % smallest squared differences)."""
     right = d["right"]
-    left = warp_to(d["images"][: len(GRID)], right["disparity"], 1)
+    left = np.stack([warp_to_other(x, right["disparity"], 1) for x in d["images"][: len(GRID)]])
     border = protocol.border_of(left.shape[2])
     inner = (slice(None), slice(border, -border), slice(border, -border))
     diff = ((left - right["images"])[inner] ** 2).mean(axis=-1).reshape(len(GRID), -1)

@@ -61,7 +61,7 @@ def run_demo(
     progress : callable, optional
         Receives :class:`~stereodeblur.progress.Progress` reports.
     """
-    from .evaluation.metrics import psnr
+    from .evaluation.metrics import border_for, psnr
     from .io.formats import linear_to_srgb, write_png
     from .io.scene import SceneWriter, open_scene
     from .pipeline import DeblurSettings, deblur_frame
@@ -79,7 +79,7 @@ def run_demo(
         "left", DEMO_FRAME, result.image
     )
     sharp = scene.read_gt_sharp("left", DEMO_FRAME)
-    border = max(4, round(0.025 * size[0]))
+    border = border_for(size[0])
     picture = output / "demo.png"
     # The scene holds linear values; the picture is sRGB-encoded for viewing.
     panel = side_by_side([result.blurred, result.image, sharp])

@@ -30,16 +30,16 @@ def test_warp_takes_the_left_view_to_the_right_and_back():
     left = _texture((20, 40))
     disparity = np.full((20, 40), 3.0)
     right = np.roll(left, -3, axis=1)  # x_R(u) = x_L(u + 3)
-    to_right = warp_to_other(left, OtherView(_Identity(), right, disparity, +1))
+    to_right = warp_to_other(left, disparity, +1)
     np.testing.assert_allclose(to_right[:, :-3], right[:, :-3], atol=1e-12)
-    to_left = warp_to_other(right, OtherView(_Identity(), left, disparity, -1))
+    to_left = warp_to_other(right, disparity, -1)
     np.testing.assert_allclose(to_left[:, 3:], left[:, 3:], atol=1e-12)
 
 
 def test_warp_interpolates_fractional_disparities_of_colour_images():
     left = np.stack([_texture((16, 30), seed) for seed in range(3)], axis=-1)
     disparity = np.full((16, 30), 2.5)
-    warped = warp_to_other(left, OtherView(_Identity(), left, disparity, +1))
+    warped = warp_to_other(left, disparity, +1)
     expected = 0.5 * (np.roll(left, -2, axis=1) + np.roll(left, -3, axis=1))
     np.testing.assert_allclose(warped[:, :-3], expected[:, :-3], atol=1e-12)
 

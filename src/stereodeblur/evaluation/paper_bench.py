@@ -176,10 +176,6 @@ def cached_motion(scene, source: str, settings, cache: Path):
 # --- one column -----------------------------------------------------------------------------
 
 
-def _border(shape) -> int:
-    return max(4, round(0.025 * shape[1]))
-
-
 def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) -> dict:
     """The weight diagnostics of a deblurring (module docstring), in percent.
 
@@ -219,14 +215,14 @@ def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) 
 def run_column(scene, column: Column, base_settings: DeblurSettings, motion, truth: dict) -> tuple:
     """Deblur frame 1 with ``column``; returns ``(ColumnResult, image)``."""
     from ..pipeline import deblur_frame
-    from .metrics import disparity_error, endpoint_error, psnr, ssim
+    from .metrics import border_for, disparity_error, endpoint_error, psnr, ssim
 
     settings = column.settings(base_settings)
     start = time.perf_counter()
     result, _ = _quiet(deblur_frame, scene, FRAME, settings=settings, motion=motion)
     seconds = time.perf_counter() - start
     sharp = truth["sharp"]
-    border = _border(sharp.shape)
+    border = border_for(sharp.shape[1])
     flow = motion.flow_forward if column.kernels == "displacement" else motion.sceneflow.flow()
     aep = math.nan if column.motion_source == "gt" else endpoint_error(flow, truth["flow"])
     ade = math.nan
@@ -281,7 +277,7 @@ def evaluate_scene(
     from ..io.formats import write_png
     from ..io.outputs import atomic_write_text
     from ..io.scene import open_scene
-    from .metrics import psnr, ssim
+    from .metrics import border_for, psnr, ssim
 
     scene = open_scene(root)
     name = root.name
@@ -292,7 +288,7 @@ def evaluate_scene(
         "mixed": scene.read_gt_mixed("left", FRAME),
     }
     blurred = scene.read_frame("left", FRAME)
-    border = _border(blurred.shape)
+    border = border_for(blurred.shape[1])
     results = {}
     motions = {}
     messages: list[str] = []

@@ -51,12 +51,12 @@ def evaluate_scene(
     from ..io.scene import open_scene
     from ..pipeline import DeblurSettings, deblur_frame
     from ..synth.planar import curvature_px, planar_setup
-    from .metrics import psnr, ssim
+    from .metrics import border_for, psnr, ssim
 
     t0 = time.perf_counter()
     scene = open_scene(root)
     sharp = scene.read_gt_sharp("left", FRAME)
-    border = max(4, round(0.025 * sharp.shape[1]))
+    border = border_for(sharp.shape[1])
     results = {}
     for key, kernels, source in (
         ("displacement", "displacement", "gt"),

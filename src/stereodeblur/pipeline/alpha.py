@@ -51,20 +51,20 @@ def other_view(view_operator, motion, blurred: np.ndarray, view: str) -> OtherVi
     for the choice of the view opposite to it."""
     if motion.sceneflow is None:
         raise InputError(
-            "alpha='cross-view' needs a scene flow (motion_source 'sceneflow' or 'gt'), "
-            "not 'initial-flow'",
+            f"alpha='cross-view' needs the {view} view's disparity, which its motion lacks",
             parameter="alpha",
         )
     direction = 1 if view == "right" else -1
     return OtherView(view_operator.operator, blurred, motion.sceneflow.disparity(), direction)
 
 
-def warp_to_other(image: np.ndarray, other: OtherView) -> np.ndarray:
-    """``image`` resampled on the other view's grid at ``u + direction * d(u)`` (bilinear,
-    edge pixels repeated), float64."""
-    height, width = other.disparity.shape
+def warp_to_other(image: np.ndarray, disparity: np.ndarray, direction: int) -> np.ndarray:
+    """``image`` resampled on the other view's grid at ``u + direction * d(u)`` (``d``: the
+    other view's disparity; +1 takes a left image to the right view), bilinear, edge pixels
+    repeated, float64."""
+    height, width = disparity.shape
     rows, cols = np.mgrid[0:height, 0:width].astype(np.float64)
-    cols += other.direction * other.disparity
+    cols += direction * disparity
     planes = image[..., None] if image.ndim == 2 else image
     out = np.empty(planes.shape, np.float64)
     for c in range(planes.shape[-1]):
@@ -75,22 +75,22 @@ def warp_to_other(image: np.ndarray, other: OtherView) -> np.ndarray:
 
 
 def prediction_error(image: np.ndarray, other: OtherView, *, border: int) -> float:
-    """Mean squared error of the other view's blurred frame predicted from ``image``,
-    over the :data:`CROSS_VIEW_KEEP` smallest per-pixel errors, ``border`` px excluded."""
-    predicted = other.operator.forward(warp_to_other(image, other))
-    error = (predicted - np.asarray(other.blurred, np.float64)) ** 2
+    """:func:`trimmed_error` of the other view's blurred frame predicted from ``image``."""
+    predicted = other.operator.forward(warp_to_other(image, other.disparity, other.direction))
+    return trimmed_error(predicted, other.blurred, border=border)
+
+
+def trimmed_error(predicted, observed, *, border: int, keep: float = CROSS_VIEW_KEEP) -> float:
+    """Mean squared error per pixel (over channels) of the ``keep`` smallest ones,
+    ``border`` px excluded."""
+    error = (np.asarray(predicted, np.float64) - np.asarray(observed, np.float64)) ** 2
     if error.ndim == 3:
         error = error.mean(axis=-1)
     error = np.sort(error[border:-border, border:-border], axis=None)
-    return float(error[: max(1, int(CROSS_VIEW_KEEP * error.size))].mean())
+    return float(error[: max(1, int(keep * error.size))].mean())
 
 
 def choose(errors) -> int:
     """Index of the chosen alpha: :data:`CROSS_VIEW_STEP` above the best predictor, within
     the grid."""
     return min(int(np.argmin(errors)) + CROSS_VIEW_STEP, len(errors) - 1)
-
-
-def border_of(width: int) -> int:
-    """Pixels left out at the image edge: 2.5 % of the width, at least 4 (as the benches)."""
-    return max(4, round(0.025 * width))

@@ -15,9 +15,10 @@ import numpy as np
 
 from ..deconv.irls import DeblurResult, deblur_irls
 from ..errors import InputError
+from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
 from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
-from .alpha import OtherView, border_of, choose, other_view, prediction_error
+from .alpha import OtherView, choose, other_view, prediction_error
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .operator import view_operator
 from .weights import DataTerms, data_terms
@@ -128,7 +129,7 @@ def deblur_view(
         if other is None:
             raise InputError("alpha='cross-view' needs the other view", parameter="alpha")
         terms, result = _cross_view_solve(
-            scene, window, view, operator, settings, other, weights, progress
+            scene, window, view, blurred, operator, settings, other, weights, progress
         )
     else:
         terms = data_terms(scene, window, view, operator, settings)
@@ -149,13 +150,12 @@ def deblur_view(
     )
 
 
-def _cross_view_solve(scene, window, view, operator, settings, other, weights, progress):
+def _cross_view_solve(scene, window, view, blurred, operator, settings, other, weights, progress):
     """Solve at every alpha of :data:`CROSS_VIEW_ALPHAS`; keep the one chosen by
     predicting ``other`` (:mod:`.alpha`). Returns its data terms and result."""
     fixed = replace(settings, alpha=CROSS_VIEW_ALPHAS[0])
     base = data_terms(scene, window, view, operator, fixed)
-    blurred = window.blurred(view)
-    border = border_of(blurred.shape[1])
+    border = border_for(blurred.shape[1])
     runs, errors = [], []
     for alpha in CROSS_VIEW_ALPHAS:
         report(progress, f"alpha {alpha:g}")
