@@ -21,9 +21,10 @@ estimated), the motion computed once per scene and source
 
 - ``default``: :class:`~stereodeblur.pipeline.DeblurSettings` defaults;
 - ``paper``: the paper's settings, ``alpha=0.001``, ``boundary_weights='none'``;
-- ``cross-view``: the candidate :data:`CANDIDATE`, ``alpha='cross-view'`` with the default
-  boundary handling (it computes the motion of both views itself), checked like the default;
-- ``alpha=A`` for A in :data:`ALPHAS`, the default boundary handling;
+- the candidates of :data:`CANDIDATES` (``alpha='cross-view'`` computes the motion of both
+  views itself), each checked like the default against the grid of its own boundary handling;
+- ``alpha=A`` for A in :data:`ALPHAS`, the default boundary handling, and ``HANDLING-alpha=A``
+  for a candidate's other handling;
 
 and once with the monocular path with the same defaults (``motion_source='initial-flow',
 kernels='displacement'``). PSNR and SSIM are measured against gt/sharp without a border of
@@ -62,8 +63,11 @@ KINDS = ("family", "street")
 WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
 """dB limits of the checks (issue 12)."""
 FEATURES_VERSION = " features 1"
-CANDIDATE = "cross-view"
-"""A candidate default, checked like the default: alpha='cross-view', default boundaries."""
+CANDIDATES = {
+    "cross-view": {"alpha": "cross-view"},
+    "gated-cross-view": {"alpha": "cross-view", "boundary_weights": "gated"},
+}
+"""Candidate defaults (settings overrides), checked like the default."""
 
 
 @dataclass(frozen=True)
@@ -86,14 +90,24 @@ def alpha_key(alpha: float) -> str:
     return f"alpha={alpha:g}"
 
 
+def grid_prefix(key: str) -> str:
+    """The prefix of the alpha grid column ``key`` is compared with: its own handling's."""
+    handling = CANDIDATES.get(key, {}).get("boundary_weights")
+    return "" if handling is None else f"{handling}-"
+
+
 def columns_for(motions) -> list[Column]:
     """Every column for the motion sources ``motions``; the monocular one with ``sceneflow``."""
+    handlings = dict.fromkeys(grid_prefix(key) for key in CANDIDATES if grid_prefix(key))
     out = []
     for source in motions:
         out.append(Column("default", source))
         out.append(Column("paper", source, dict(PAPER)))
-        out.append(Column(CANDIDATE, source, {"alpha": "cross-view"}))
+        out += [Column(key, source, dict(overrides)) for key, overrides in CANDIDATES.items()]
         out += [Column(alpha_key(a), source, {"alpha": a}) for a in ALPHAS]
+        for prefix in handlings:
+            overrides = {"boundary_weights": prefix[:-1]}
+            out += [Column(prefix + alpha_key(a), source, overrides | {"alpha": a}) for a in ALPHAS]
     if "sceneflow" in motions:  # the estimated-motion method it competes with
         out.append(Column("monocular", "initial-flow"))
     return out
@@ -306,13 +320,14 @@ def gaps(row: dict, source: str, key: str = "default") -> dict:
     default's gaps."""
     columns = row["columns"]
     value = {k.split("/", 1)[1]: v["psnr"] for k, v in columns.items() if k.startswith(source)}
-    best_key = max((alpha_key(a) for a in ALPHAS), key=lambda k: value[k])
+    grid = [grid_prefix(key) + alpha_key(a) for a in ALPHAS]
+    best_key = max(grid, key=lambda k: value[k])
     return {
         "default": value[key],
         "default_alpha": columns[f"{source}/{key}"]["alpha"],
         "paper": value["paper"],
         "best": value[best_key],
-        "best_alpha": best_key.split("=", 1)[1],
+        "best_alpha": best_key.rsplit("=", 1)[1],
         "below_best": value[best_key] - value[key],
         "below_paper": value["paper"] - value[key],
     }
@@ -364,10 +379,12 @@ def scene_table(row: dict, motions) -> list[str]:
         "| column | " + " | ".join(f"{m} PSNR / SSIM" for m in motions) + " |",
         "|---|" + "---|" * len(motions),
     ]
-    keys = ["default", CANDIDATE, "paper"] + [alpha_key(a) for a in ALPHAS]
+    prefixes = dict.fromkeys(["", *(grid_prefix(k) for k in CANDIDATES)])
+    keys = ["default", *CANDIDATES, "paper"]
+    keys += [p + alpha_key(a) for p in prefixes for a in ALPHAS]
     for key in keys:
         cells = [_cell(row["columns"].get(f"{m}/{key}")) for m in motions]
-        if key in ("default", CANDIDATE):
+        if key == "default" or key in CANDIDATES:
             alphas = [row["columns"][f"{m}/{key}"]["alpha"] for m in motions]
             key = f"{key} (alpha " + ", ".join(f"{a:.2g}" for a in alphas) + ")"
         lines.append(f"| {key} | " + " | ".join(cells) + " |")
@@ -413,7 +430,9 @@ def code_version() -> str:
 
 def report(rows, args, seconds: float) -> str:
     motions = args.motions
-    passed = checks(rows, motions) + checks(rows, motions, CANDIDATE)
+    passed = checks(rows, motions)
+    for key in CANDIDATES:
+        passed += checks(rows, motions, key)
     lines = [
         f"# Calibration protocol: {args.split} split, {args.size}, {len(rows)} scenes",
         "",

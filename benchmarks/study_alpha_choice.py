@@ -6,11 +6,11 @@ Run from the repository root::
 
 Frame 1 of the left view of every scene of the calibration protocol's **train split**
 (seeds 0-999; any other seed is refused) is deblurred from both motion sources (``gt``,
-``sceneflow``) with the boundary handlings ``adaptive`` and ``none`` at every alpha of
-:data:`GRID` and at ``'auto'``. Every solution is kept (``--work``/SCENE/SOURCE_HANDLING.npz
-with the truth and the blurred frame), so that rules choosing alpha from the solutions
-(e.g. the quasi-optimality criterion) are evaluated afterwards without deblurring again
-(``benchmarks/study_alpha_choice_report.py``).
+``sceneflow``) with the boundary handlings ``adaptive``, ``none`` and ``gated`` at every
+alpha of :data:`GRID` and at ``'auto'``. Every solution is kept
+(``--work``/SCENE/SOURCE_HANDLING.npz with the truth and the blurred frame), so that rules
+choosing alpha from the solutions (e.g. the quasi-optimality criterion) are evaluated
+afterwards without deblurring again (``benchmarks/study_alpha_choice_report.py``).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import calibrate_defaults as protocol  # noqa: E402
 
 GRID = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 SOURCES = ("gt", "sceneflow")
-HANDLINGS = ("adaptive", "none")
+HANDLINGS = ("adaptive", "none", "gated")
 KEEPS = (0.9, 1.0)
 """Shares of the best-predicted pixels the cross-view costs are kept for."""
 

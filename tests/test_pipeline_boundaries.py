@@ -180,3 +180,62 @@ def test_trust_uses_both_neighbouring_frames(scene):
 def test_bad_settings_are_input_errors(field, value, message):
     with pytest.raises(InputError, match=message):
         DeblurSettings(**{field: value})
+
+
+def test_gated_takes_the_dense_rows_only_where_the_dense_flow_predicts_clearly_better(scene):
+    from stereodeblur.pipeline import gate_trusts, read_window, view_operator
+    from stereodeblur.settings import GATE_MARGIN
+
+    settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"}, boundary_weights="gated")
+    window = read_window(scene, 1, ("left",), settings)
+    motion = frame_motion(scene, 1, "left", settings, window.blurred("left"))
+    own, dense = gate_trusts(window, "left", motion, noise_sigma=0.01)
+    _, band = boundary_motion(motion, window.exposure.duty_cycle)
+    np.testing.assert_array_equal(own[~band], 1)
+    np.testing.assert_array_equal(dense[~band], 1)
+    assert (own[band] < 1).any() and (dense[band] != own[band]).any()
+    built = view_operator(motion, window.exposure, settings, trusts=(own, dense))
+    np.testing.assert_array_equal(built.flow_rows, band & (dense > own + GATE_MARGIN))
+    # A dense flow that is always clearly better takes the whole band, as 'adaptive' does;
+    # one that never is leaves the scene flow's homographies (and no occlusion-aware rows).
+    ones, zeros = np.ones_like(own), np.zeros_like(own)
+    everywhere = view_operator(motion, window.exposure, settings, trusts=(zeros, ones))
+    adaptive = view_operator(
+        motion, window.exposure, DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+    )
+    np.testing.assert_array_equal(everywhere.flow_rows, band)
+    np.testing.assert_array_equal(
+        everywhere.operator.matrix.toarray(), adaptive.operator.matrix.toarray()
+    )
+    assert adaptive.trusts is None
+    nowhere = view_operator(motion, window.exposure, settings, trusts=(ones, ones))
+    assert not nowhere.flow_rows.any() and nowhere.hidden is None
+    np.testing.assert_array_equal(
+        nowhere.operator.matrix.toarray(),
+        build_operator(motion, window.exposure, settings).matrix.toarray(),
+    )
+
+
+@pytest.mark.parametrize("source", ["gt", "sceneflow"])
+def test_gated_never_anchors_and_keeps_the_outside_weights(scene, monkeypatch, source):
+    from stereodeblur.pipeline import frame
+
+    anchors = _spy(monkeypatch, frame, "deblur_irls", "anchor")
+    settings = DeblurSettings(**{**FAST, "motion_source": source}, boundary_weights="gated")
+    motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
+    result = deblur_frame(scene, 1, settings=settings, motion=motion)
+    adaptive = deblur_frame(
+        scene, 1, settings=DeblurSettings(**{**FAST, "motion_source": source}), motion=motion
+    )
+    assert anchors[0] is None
+    assert result.trust is not None and (result.trust < 1).any()
+    if source == "gt":  # no dense flow: the adaptive operator, data weights and trust
+        assert anchors[1] is not None and anchors[1].max() > 0
+        np.testing.assert_array_equal(result.result.weights, adaptive.result.weights)
+        np.testing.assert_array_equal(result.trust, adaptive.trust)
+        assert not np.array_equal(result.image, adaptive.image)
+    else:
+        duty_cycle = scene.info.exposure.duty_cycle
+        outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
+        expected = np.where(outside, np.float32(OUTSIDE_WEIGHT), np.float32(1))
+        np.testing.assert_array_equal(result.result.weights, expected)

@@ -27,6 +27,7 @@ __all__ = [
     "DEFAULT_BOUNDARY_WEIGHTS",
     "DEFAULT_KERNELS",
     "DEFAULT_MOTION_SOURCE",
+    "GATE_MARGIN",
     "KERNELS",
     "MOTION_SOURCES",
     "NUM_CG",
@@ -41,7 +42,7 @@ __all__ = [
 
 KERNELS = ("homography", "displacement")
 MOTION_SOURCES = ("gt", "sceneflow", "initial-flow")
-BOUNDARY_WEIGHTS = ("adaptive", "paper", "none")
+BOUNDARY_WEIGHTS = ("adaptive", "gated", "paper", "none")
 BOUNDARY_MASKS = (None, "gt")
 
 # The paper's N = 70 instants per exposure (Sec. 4); the speed table of README.md
@@ -77,6 +78,11 @@ CROSS_VIEW_STEP = 1
 CROSS_VIEW_KEEP = 0.9
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene.
 DEFAULT_BOUNDARY_WEIGHTS = "adaptive"
+# 'gated': the dense flow's rows only where its trust beats the scene flow's by this margin.
+# Boundary ablation, 64 training scenes, estimated motion (benchmarks/results/
+# boundary_study_train_320x240.md, column gate:better>0.25): worst -0.41 dB against the
+# paper's w = 1 (all rows: -2.48), margin 0.1: -0.53.
+GATE_MARGIN = 0.25
 
 # Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre
 # instant alone, an identity "blur"; the operator's memory grows with samples x pixels (about
@@ -133,7 +139,7 @@ class DeblurSettings:
         ``sceneflow.num_segments``. None there too: 1200 at 640x480, scaled with the area.
     seed : int
         Seed of the scene-flow estimator's random choices.
-    boundary_weights : {'adaptive', 'paper', 'none'}
+    boundary_weights : {'adaptive', 'gated', 'paper', 'none'}
         Handling of the pixels the blur model cannot explain (motion boundaries, motion
         errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` (but a small weight
         where the exposure path leaves the view); near the motion's flow discontinuities
@@ -142,6 +148,9 @@ class DeblurSettings:
         displacement kernels, it anchors the estimate to the blurred frame where the motion
         fails to predict both neighbouring frames instead (:mod:`stereodeblur.deconv.trust`),
         and homography kernels become occlusion-aware (:func:`stereodeblur.pipeline.visibility`);
+        ``'gated'`` the same without the anchor, and with the dense flow's rows only where
+        the dense flow predicts the neighbouring frames better than the motion by more than
+        :data:`GATE_MARGIN` in trust (:func:`stereodeblur.pipeline.dense_gate`);
         ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
         updated every IRLS iteration) started from the scene flow's occlusion mask (from 1
         without a scene flow); ``'none'`` ``w = 1``.

@@ -111,7 +111,7 @@ FUZZ = settings(max_examples=150, deadline=None, derandomize=True)
     num_irls=st.integers(1, 1000),
     num_cg=st.integers(1, 1000),
     num_segments=st.one_of(st.none(), st.integers(1, 100_000)),
-    boundary_weights=st.sampled_from(["adaptive", "paper", "none"]),
+    boundary_weights=st.sampled_from(["adaptive", "gated", "paper", "none"]),
     boundary_mask=st.sampled_from([None, "gt"]),
 )
 def test_any_settings_round_trip_through_the_options(**fields):

@@ -33,10 +33,17 @@ def _row(runner, name, default, paper, best):
 
 def test_columns_cover_the_protocol(runner):
     keys = [(c.motion_source, c.key) for c in runner.columns_for(("gt", "sceneflow"))]
-    assert len(keys) == 2 * (3 + len(runner.ALPHAS)) + 1
+    assert len(keys) == 2 * (4 + 2 * len(runner.ALPHAS)) + 1
+    assert len(set(keys)) == len(keys)
     assert ("initial-flow", "monocular") in keys and ("sceneflow", "paper") in keys
-    candidate = [c for c in runner.columns_for(("gt",)) if c.key == runner.CANDIDATE][0]
-    assert candidate.settings().alpha == "cross-view"
+    columns = {c.key: c.settings() for c in runner.columns_for(("gt",))}
+    assert columns["cross-view"].alpha == "cross-view"
+    assert columns["cross-view"].boundary_weights == columns["default"].boundary_weights
+    gated = columns["gated-cross-view"]
+    assert (gated.alpha, gated.boundary_weights) == ("cross-view", "gated")
+    assert runner.grid_prefix("gated-cross-view") == "gated-"
+    assert columns["gated-alpha=0.001"].alpha == 1e-3
+    assert columns["gated-alpha=0.001"].boundary_weights == "gated"
     assert ("initial-flow", "monocular") not in [
         (c.motion_source, c.key) for c in runner.columns_for(("gt",))
     ]
@@ -59,14 +66,22 @@ def test_checks_pass_and_fail_on_the_issue_limits(runner):
     assert [ok for _, ok, _ in runner.checks(far, ("gt",))] == [True, False, True]
 
 
-def test_the_candidate_is_checked_like_the_default(runner):
+def test_a_candidate_is_checked_like_the_default_against_its_own_grid(runner):
     rows = [_row(runner, "a", 30.0, 30.2, 30.3), _row(runner, "b", 25.0, 24.0, 25.4)]
     for row, psnr in zip(rows, (28.0, 25.3), strict=True):
-        row["columns"][f"gt/{runner.CANDIDATE}"] = {"psnr": psnr, "alpha": 1e-3}
+        row["columns"]["gt/cross-view"] = {"psnr": psnr, "alpha": 1e-3}
+        row["columns"]["gt/gated-cross-view"] = {"psnr": psnr, "alpha": 1e-3}
+        for alpha in runner.ALPHAS:  # the gated grid peaks 2 dB lower
+            grid = row["columns"][f"gt/{runner.alpha_key(alpha)}"]
+            row["columns"][f"gt/gated-{runner.alpha_key(alpha)}"] = grid | {
+                "psnr": grid["psnr"] - 2
+            }
     assert all(ok for _, ok, _ in runner.checks(rows, ("gt",)))
-    candidate = runner.checks(rows, ("gt",), runner.CANDIDATE)
+    candidate = runner.checks(rows, ("gt",), "cross-view")
     assert [ok for _, ok, _ in candidate] == [False, False, False]  # 2.3 dB off on "a"
-    assert all(runner.CANDIDATE in name for name, _, _ in candidate)
+    assert all("cross-view" in name for name, _, _ in candidate)
+    gated = runner.checks(rows, ("gt",), "gated-cross-view")  # 0.3 dB off its own grid's best
+    assert [ok for _, ok, _ in gated] == [True, True, False]
 
 
 def test_scene_lists_follow_the_split(runner):

@@ -136,8 +136,9 @@ BOUNDARY_HELP = (
     "motion boundaries: adaptive (default: blur from the dense optical flow near motion "
     "boundaries; without one, each instant shows the surface covering the pixel then, pixels "
     "showing surfaces hidden at the frame centre are down-weighted and the blurred frame is kept "
-    "where the motion does not predict the neighbouring frames) or paper (Eq. 5 data weights "
-    "as published)"
+    "where the motion does not predict the neighbouring frames), gated (the same without keeping "
+    "the blurred frame, and the dense flow's blur only where it predicts the neighbouring "
+    "frames clearly better) or paper (Eq. 5 data weights as published)"
 )
 
 

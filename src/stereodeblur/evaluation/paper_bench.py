@@ -218,8 +218,9 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
     from .metrics import border_for, disparity_error, endpoint_error, psnr, ssim
 
     settings = column.settings(base_settings)
+    given = None if settings.alpha == "cross-view" else motion  # it needs both views'
     start = time.perf_counter()
-    result, _ = _quiet(deblur_frame, scene, FRAME, settings=settings, motion=motion)
+    result, _ = _quiet(deblur_frame, scene, FRAME, settings=settings, motion=given)
     seconds = time.perf_counter() - start
     sharp = truth["sharp"]
     border = border_for(sharp.shape[1])

@@ -39,6 +39,7 @@ from ..settings import (
 from .frame import (
     FrameResult,
     StereoFrameResult,
+    build_view_operator,
     deblur_frame,
     deblur_stereo_frame,
     deblur_view,
@@ -58,7 +59,7 @@ from .motion import (
     with_boundary_flow,
 )
 from .operator import ViewOperator, boundary_motion, build_operator, view_operator, visibility
-from .weights import DataTerms, data_terms, frame_trust, resolve_alpha
+from .weights import DataTerms, data_terms, frame_trust, gate_trusts, resolve_alpha
 from .window import (
     FrameWindow,
     check_gt,
@@ -85,6 +86,7 @@ __all__ = [
     "ViewOperator",
     "boundary_motion",
     "build_operator",
+    "build_view_operator",
     "check_gt",
     "data_terms",
     "deblur_frame",
@@ -93,6 +95,7 @@ __all__ = [
     "dense_flow",
     "frame_motion",
     "frame_trust",
+    "gate_trusts",
     "gt_needs",
     "invert_flow",
     "invert_known_flow",

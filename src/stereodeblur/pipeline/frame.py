@@ -21,8 +21,8 @@ from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
 from .alpha import OtherView, choose, other_view, prediction_error
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .operator import view_operator
-from .weights import DataTerms, data_terms
-from .window import VIEWS, FrameWindow, check_gt, check_views, read_window
+from .weights import DataTerms, data_terms, gate_trusts
+from .window import VIEWS, FrameWindow, check_gt, check_views, read_window, uses_boundary_flow
 
 if TYPE_CHECKING:
     from ..io.protocol import StereoScene
@@ -36,10 +36,10 @@ class FrameResult:
     ``alpha`` is the prior weight used; ``weight_steps`` the boundary-weight updates
     (:class:`~stereodeblur.deconv.weights.WeightsStep`: weights and the residual norm
     they came from, per IRLS iteration), empty with fixed weights; ``trust`` the trust in
-    the blur model per pixel (``boundary_weights='adaptive'``, else None). ``timings``:
-    seconds of ``'motion'`` (reading the frames included; from :func:`deblur_stereo_frame`
-    an equal share of the stereo frame's), ``'operator'`` and ``'deconvolution'`` (data
-    weights, trust and alpha included).
+    the blur model per pixel (``boundary_weights='adaptive'`` or ``'gated'``, else None).
+    ``timings``: seconds of ``'motion'`` (reading the frames included; from
+    :func:`deblur_stereo_frame` an equal share of the stereo frame's), ``'operator'`` and
+    ``'deconvolution'`` (data weights, trust and alpha included).
     """
 
     index: int
@@ -98,6 +98,18 @@ def solve(
     )
 
 
+def build_view_operator(window: FrameWindow, motion: FrameMotion, settings: DeblurSettings):
+    """:func:`~.operator.view_operator` of ``motion``, gated by the trusts measured on
+    ``window`` with ``boundary_weights='gated'``."""
+    trusts = None
+    if settings.boundary_weights == "gated" and uses_boundary_flow(settings):
+        from ..deconv.noise import estimate_noise_sigma
+
+        sigma = estimate_noise_sigma(window.blurred(motion.view))
+        trusts = gate_trusts(window, motion.view, motion, noise_sigma=sigma)
+    return view_operator(motion, window.exposure, settings, trusts=trusts)
+
+
 def deblur_view(
     scene: StereoScene,
     window: FrameWindow,
@@ -121,7 +133,7 @@ def deblur_view(
     if operator is None:
         start = time.perf_counter()
         report(progress, f"blur operator ({settings.kernels})")
-        operator = view_operator(motion, window.exposure, settings)
+        operator = build_view_operator(window, motion, settings)
         timings["operator"] = time.perf_counter() - start
     start = time.perf_counter()  # the data terms count as part of the deconvolution
     blurred = window.blurred(view)
@@ -251,7 +263,7 @@ def deblur_stereo_frame(
         for view in VIEWS:
             start = time.perf_counter()
             report(progress, f"frame {index} {view}: blur operator ({settings.kernels})")
-            operators[view] = view_operator(motion.views[view], window.exposure, settings)
+            operators[view] = build_view_operator(window, motion.views[view], settings)
             seconds[view] = {"operator": time.perf_counter() - start}
         for view, other in zip(VIEWS, VIEWS[::-1], strict=True):
             others[view] = other_view(

@@ -23,7 +23,9 @@ class ViewOperator:
     ``motion`` is the motion the operator uses (its 2D flows taken from the dense flow in
     the band ``flow_rows``, if any), ``own`` the motion before that (the scene flow's own);
     ``hidden`` the share of the exposure each pixel shows a surface the frame centre hides
-    (occlusion-aware operators, :func:`visibility`), else None.
+    (occlusion-aware operators, :func:`visibility`), else None; ``trusts`` the trusts of
+    ``own`` and of the dense flow that gated the band (``boundary_weights='gated'``), else
+    None.
     """
 
     operator: SparseBlur
@@ -31,9 +33,12 @@ class ViewOperator:
     own: FrameMotion
     flow_rows: np.ndarray | None = None
     hidden: np.ndarray | None = None
+    trusts: tuple[np.ndarray, np.ndarray] | None = None
 
 
-def boundary_motion(motion: FrameMotion, duty_cycle: float) -> tuple[FrameMotion, np.ndarray]:
+def boundary_motion(
+    motion: FrameMotion, duty_cycle: float, *, gate=None
+) -> tuple[FrameMotion, np.ndarray]:
     """The motion with its 2D flows taken from ``motion.boundary_flow`` near motion boundaries.
 
     Where the exposure mixes two surfaces the blurred edge travels with the occluding one,
@@ -41,12 +46,14 @@ def boundary_motion(motion: FrameMotion, duty_cycle: float) -> tuple[FrameMotion
     each pixel the one surface it shows at the frame's centre, and the dense flow's straight
     kernels explain those pixels better (README, "Where the defaults come from"). Returns the
     motion and the boundary band (bool ``(H, W)``,
-    :func:`~stereodeblur.deconv.trust.near_motion_boundaries` of the scene flow's 2D flow):
-    pass it to :func:`build_operator` as ``flow_rows``.
+    :func:`~stereodeblur.deconv.trust.near_motion_boundaries` of the scene flow's 2D flow,
+    within ``gate`` if given): pass it to :func:`build_operator` as ``flow_rows``.
     """
     from ..deconv.trust import near_motion_boundaries
 
     band = near_motion_boundaries(motion.flow_forward, duty_cycle)
+    if gate is not None:
+        band &= gate
     forward, backward = motion.boundary_flow
     backward = -forward if backward is None else backward
     inside = band[..., None]
@@ -96,9 +103,9 @@ def build_operator(
 def visibility(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings, flow_rows):
     """The segment every pixel shows at every instant, or None for the paper's operator.
 
-    With ``boundary_weights='adaptive'`` and homography kernels whose rows near motion
-    boundaries are the scene flow's own (no dense flow, ``flow_rows`` None), the operator
-    lets each instant show the surface that covers the pixel then
+    With ``boundary_weights='adaptive'`` or ``'gated'`` and homography kernels whose rows
+    near motion boundaries are the scene flow's own (no dense flow, ``flow_rows`` None), the
+    operator lets each instant show the surface that covers the pixel then
     (:mod:`stereodeblur.blur.visibility`) and the pixels that show surfaces hidden at
     the reference instant get :func:`~stereodeblur.deconv.weights.hidden_weights`. With
     the estimated scene flow, whose boundaries lie somewhere in the blurred edges, the
@@ -111,11 +118,21 @@ def visibility(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings
     return sceneflow_visibility(motion.sceneflow, exposure, settings.num_samples)
 
 
-def view_operator(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings):
-    """The :class:`ViewOperator` of a view's motion under ``settings``."""
+def view_operator(
+    motion: FrameMotion, exposure: Exposure, settings: DeblurSettings, *, trusts=None
+):
+    """The :class:`ViewOperator` of a view's motion under ``settings``.
+
+    ``trusts``: the trusts of ``motion`` and of its dense flow
+    (:func:`~stereodeblur.pipeline.gate_trusts`); the dense flow's rows are then taken only
+    where its trust is higher by more than :data:`~stereodeblur.settings.GATE_MARGIN`.
+    """
+    from ..settings import GATE_MARGIN
+
     own, flow_rows = motion, None
+    gate = None if trusts is None else trusts[1] > trusts[0] + GATE_MARGIN
     if uses_boundary_flow(settings) and motion.boundary_flow is not None:
-        motion, flow_rows = boundary_motion(motion, exposure.duty_cycle)
+        motion, flow_rows = boundary_motion(motion, exposure.duty_cycle, gate=gate)
     visible = visibility(motion, exposure, settings, flow_rows)
     operator = build_operator(motion, exposure, settings, flow_rows=flow_rows, visible=visible)
     hidden = None
@@ -123,4 +140,4 @@ def view_operator(motion: FrameMotion, exposure: Exposure, settings: DeblurSetti
         from ..blur.visibility import hidden_fraction
 
         hidden = hidden_fraction(visible)
-    return ViewOperator(operator, motion, own, flow_rows, hidden)
+    return ViewOperator(operator, motion, own, flow_rows, hidden, trusts)

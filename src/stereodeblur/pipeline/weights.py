@@ -25,19 +25,20 @@ class DataTerms:
     Parameters
     ----------
     weights : ndarray, float32, shape (H, W)
-        ``w_0``; ``'adaptive'``: :data:`~stereodeblur.deconv.trust.OUTSIDE_WEIGHT` where
-        the exposure path leaves the view (:func:`~stereodeblur.deconv.trust.leaves_view`),
+        ``w_0``; ``'adaptive'``, ``'gated'``: :data:`~stereodeblur.deconv.trust.OUTSIDE_WEIGHT`
+        where the exposure path leaves the view (:func:`~stereodeblur.deconv.trust.leaves_view`),
         times :func:`~stereodeblur.deconv.weights.hidden_weights` with an occlusion-aware
         operator, else 1.
     update : callable or None
         For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
         (a masked update in ``.update.history``).
     anchor : ndarray, float32, shape (H, W), or None
-        For ``deblur_irls(anchor=...)``; None where the operator's rows near motion
-        boundaries come from the dense flow.
+        For ``deblur_irls(anchor=...)``; ``'adaptive'`` only, and None where the
+        operator's rows near motion boundaries come from the dense flow.
     trust : ndarray, float32, shape (H, W), or None
         Trust in the motion the operator uses near motion boundaries, 1 elsewhere
-        (``'adaptive'`` only; it does not include the pixels whose path leaves the view).
+        (``'adaptive'``, ``'gated'``; it does not include the pixels whose path leaves the
+        view).
     alpha : float
         The prior weight of Eq. 6 (:func:`resolve_alpha`).
     """
@@ -114,6 +115,31 @@ def frame_trusts(
     ]
 
 
+def gate_trusts(
+    window: FrameWindow, view: str, motion: FrameMotion, *, noise_sigma: float
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`frame_trust` of ``motion`` and of its dense flow, both in ``motion``'s
+    boundary band; None without a dense flow (``boundary_weights='gated'``)."""
+    from dataclasses import replace
+
+    from ..deconv.trust import near_motion_boundaries
+
+    if motion.boundary_flow is None:
+        return None
+    band = near_motion_boundaries(motion.flow_forward, window.exposure.duty_cycle)
+    forward, backward = motion.boundary_flow
+    dense = replace(
+        motion,
+        flow_forward=forward,
+        flow_backward=-forward if backward is None else backward,
+        boundary_flow=None,
+    )
+    own, dense = frame_trusts(
+        window, view, (motion, dense), noise_sigma=noise_sigma, bands=(band, band)
+    )
+    return own, dense
+
+
 def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None, *, noise_sigma=None):
     """The prior weight of a run: ``settings.alpha``, or for ``'auto'``
     :func:`~stereodeblur.deconv.noise.auto_alpha` of ``blurred`` (from ``noise_sigma`` if
@@ -169,7 +195,7 @@ def data_terms(
         update = PaperWeights()
         if sf is not None:
             weights = initial_weights_from_occlusion(sf.occlusion)
-    elif settings.boundary_weights == "adaptive":
+    elif settings.boundary_weights in ("adaptive", "gated"):
         from ..deconv.trust import OUTSIDE_WEIGHT, leaves_view, trust_anchor
 
         # Pixels whose exposure path leaves the view show content the blur model replaces
@@ -178,13 +204,19 @@ def data_terms(
         duty_cycle = window.exposure.duty_cycle
         outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
         weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
-        motions, bands = [motion], [None]
-        if dense_rows and settings.alpha == "auto":  # and the own flow's, in its band
-            motions.append(view_operator.own)
-            bands.append(view_operator.flow_rows)
-        trusts = frame_trusts(window, view, motions, noise_sigma=sigma, bands=bands)
-        trust, alpha_trust = trusts[0], trusts[-1]
-        anchor = None if dense_rows else trust_anchor(trust)
+        if view_operator.trusts is not None:  # 'gated': measured for the gate
+            own, dense = view_operator.trusts
+            trust, alpha_trust = np.where(view_operator.flow_rows, dense, own), own
+            trust = trust.astype(np.float32)
+        else:
+            motions, bands = [motion], [None]
+            if dense_rows and settings.alpha == "auto":  # and the own flow's, in its band
+                motions.append(view_operator.own)
+                bands.append(view_operator.flow_rows)
+            trusts = frame_trusts(window, view, motions, noise_sigma=sigma, bands=bands)
+            trust, alpha_trust = trusts[0], trusts[-1]
+        if settings.boundary_weights == "adaptive" and not dense_rows:
+            anchor = trust_anchor(trust)
     if settings.boundary_mask == "gt":
         keep = _gt_mask(scene, view, window.index)
         weights = weights * keep

@@ -52,9 +52,13 @@ def check_views(views) -> tuple[str, ...]:
     return views
 
 
+TRUST_HANDLINGS = ("adaptive", "gated")
+"""Boundary handlings that measure the motion's trust on the neighbouring frames."""
+
+
 def uses_boundary_flow(settings: DeblurSettings) -> bool:
     """Whether ``settings`` take the blur near motion boundaries from the dense flow."""
-    return settings.boundary_weights == "adaptive" and settings.kernels == "homography"
+    return settings.boundary_weights in TRUST_HANDLINGS and settings.kernels == "homography"
 
 
 def uses_dense_flow(settings: DeblurSettings) -> bool:
@@ -125,7 +129,7 @@ def frames_needed(
         needed += [(v, i) for i in (index, neighbour) for v in VIEWS]
     elif source == "gt":
         needed.append(("left", index))  # the superpixels are cut on the left frame
-    if (motion and uses_dense_flow(settings)) or settings.boundary_weights == "adaptive":
+    if (motion and uses_dense_flow(settings)) or settings.boundary_weights in TRUST_HANDLINGS:
         sides = (neighbour,) if other is None else (neighbour, other)
         needed += [(view, i) for view in views for i in sides]
     return list(dict.fromkeys(needed))
