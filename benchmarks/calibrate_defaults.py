@@ -65,9 +65,11 @@ WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
 FEATURES_VERSION = " features 1"
 CANDIDATES = {
     "cross-view": {"alpha": "cross-view"},
-    "gated-cross-view": {"alpha": "cross-view", "boundary_weights": "gated"},
+    "adaptive": {"boundary_weights": "adaptive"},
+    "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
 }
-"""Candidate defaults (settings overrides), checked like the default."""
+"""Candidate defaults (settings overrides), checked like the default; ``adaptive`` is the
+default before 2026-11-26."""
 
 
 @dataclass(frozen=True)
@@ -420,7 +422,9 @@ def code_version() -> str:
     import subprocess
 
     try:
-        run = dict(capture_output=True, text=True, check=True, cwd=Path(__file__).parent)
+        run = dict(
+            capture_output=True, text=True, check=True, cwd=Path(__file__).resolve().parents[1]
+        )
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], **run).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], **run).stdout
     except (OSError, subprocess.CalledProcessError):

@@ -70,7 +70,7 @@ def test_paper_weights_start_from_the_occlusion_and_follow_eq5(scene):
 
 
 def test_adaptive_trust_with_given_motion_matches_a_fresh_run(scene):
-    settings = DeblurSettings(**FAST)  # adaptive trust and auto alpha are the defaults
+    settings = DeblurSettings(**FAST, boundary_weights="adaptive")
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     given = deblur_frame(scene, 1, settings=settings, motion=motion)
     fresh = deblur_frame(scene, 1, settings=settings)
@@ -125,7 +125,7 @@ def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
     from stereodeblur.pipeline import frame
 
     anchors = _spy(monkeypatch, frame, "deblur_irls", "anchor")
-    settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+    settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"}, boundary_weights="adaptive")
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     hybrid = deblur_frame(scene, 1, settings=settings, motion=motion)
     plain = deblur_frame(
@@ -183,32 +183,37 @@ def test_bad_settings_are_input_errors(field, value, message):
 
 
 def test_gated_takes_the_dense_rows_only_where_the_dense_flow_predicts_clearly_better(scene):
-    from stereodeblur.pipeline import gate_trusts, read_window, view_operator
+    from stereodeblur.pipeline import GateTrusts, gate_trusts, read_window, view_operator
     from stereodeblur.settings import GATE_MARGIN
 
     settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"}, boundary_weights="gated")
     window = read_window(scene, 1, ("left",), settings)
     motion = frame_motion(scene, 1, "left", settings, window.blurred("left"))
-    own, dense = gate_trusts(window, "left", motion, noise_sigma=0.01)
+    trusts = gate_trusts(window, "left", motion, noise_sigma=0.01)
+    own, dense = trusts.own, trusts.dense
     _, band = boundary_motion(motion, window.exposure.duty_cycle)
     np.testing.assert_array_equal(own[~band], 1)
     np.testing.assert_array_equal(dense[~band], 1)
     assert (own[band] < 1).any() and (dense[band] != own[band]).any()
-    built = view_operator(motion, window.exposure, settings, trusts=(own, dense))
+    built = view_operator(motion, window.exposure, settings, trusts=trusts)
     np.testing.assert_array_equal(built.flow_rows, band & (dense > own + GATE_MARGIN))
     # A dense flow that is always clearly better takes the whole band, as 'adaptive' does;
     # one that never is leaves the scene flow's homographies (and no occlusion-aware rows).
     ones, zeros = np.ones_like(own), np.zeros_like(own)
-    everywhere = view_operator(motion, window.exposure, settings, trusts=(zeros, ones))
+    everywhere = view_operator(
+        motion, window.exposure, settings, trusts=GateTrusts(zeros, ones, 0.01)
+    )
     adaptive = view_operator(
-        motion, window.exposure, DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+        motion,
+        window.exposure,
+        DeblurSettings(**{**FAST, "motion_source": "sceneflow"}, boundary_weights="adaptive"),
     )
     np.testing.assert_array_equal(everywhere.flow_rows, band)
     np.testing.assert_array_equal(
         everywhere.operator.matrix.toarray(), adaptive.operator.matrix.toarray()
     )
     assert adaptive.trusts is None
-    nowhere = view_operator(motion, window.exposure, settings, trusts=(ones, ones))
+    nowhere = view_operator(motion, window.exposure, settings, trusts=GateTrusts(ones, ones, 0.01))
     assert not nowhere.flow_rows.any() and nowhere.hidden is None
     np.testing.assert_array_equal(
         nowhere.operator.matrix.toarray(),
@@ -225,7 +230,10 @@ def test_gated_never_anchors_and_keeps_the_outside_weights(scene, monkeypatch, s
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     result = deblur_frame(scene, 1, settings=settings, motion=motion)
     adaptive = deblur_frame(
-        scene, 1, settings=DeblurSettings(**{**FAST, "motion_source": source}), motion=motion
+        scene,
+        1,
+        settings=DeblurSettings(**{**FAST, "motion_source": source}, boundary_weights="adaptive"),
+        motion=motion,
     )
     assert anchors[0] is None
     assert result.trust is not None and (result.trust < 1).any()

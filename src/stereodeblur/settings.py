@@ -76,13 +76,19 @@ CROSS_VIEW_STEP = 1
 # Training study: all pixels instead of the 90 % best predicted ones lost up to 5 dB where
 # occlusions dominate the error (family_0000, gt motion).
 CROSS_VIEW_KEEP = 0.9
-# README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene.
-DEFAULT_BOUNDARY_WEIGHTS = "adaptive"
+# README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene;
+# 'gated' over 'adaptive': 40 test scenes at 320x240 (benchmarks/results/
+# calibrate_defaults_test_320x240.md) +0.09 / +0.24 dB (true motion / scene flow), scenes more
+# than 0.5 dB below the paper's settings 9 -> 6 / 15 -> 9; bench paper's objects +0.09 / -0.07
+# dB, planar scenes unchanged (benchmarks/results/paper_handlings_640x480.md).
+DEFAULT_BOUNDARY_WEIGHTS = "gated"
 # 'gated': the dense flow's rows only where its trust beats the scene flow's by this margin.
-# Boundary ablation, 64 training scenes, estimated motion (benchmarks/results/
-# boundary_study_train_320x240.md, column gate:better>0.25): worst -0.41 dB against the
-# paper's w = 1 (all rows: -2.48), margin 0.1: -0.53.
-GATE_MARGIN = 0.25
+# Training scenes, estimated motion: 0.1 and 0.25 alike (boundary_study_train_320x240.md,
+# 64 scenes at alpha 1e-3: +0.28 / +0.26 dB over the paper's w = 1, worst -0.53 / -0.41, all
+# rows -2.48; alpha_choice_train_320x240.md, 24 scenes: best alpha 0.20 dB below the paper's
+# at worst for both); bench paper's object scenes at 640x480 (benchmarks/results/
+# paper_handlings_640x480.md): 0.1 +0.09 / -0.07 dB against 'adaptive', 0.25 -0.12 / -0.41.
+GATE_MARGIN = 0.1
 
 # Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre
 # instant alone, an identity "blur"; the operator's memory grows with samples x pixels (about
@@ -127,7 +133,8 @@ class DeblurSettings:
     alpha : float, 'auto' or 'cross-view'
         Prior weight of Eq. 6; ``'auto'`` (default) sets it from the noise level of the
         blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`), and with
-        ``boundary_weights='adaptive'`` at least to what the share of pixels whose motion
+        ``boundary_weights='gated'`` or ``'adaptive'`` at least to what the share of pixels
+        whose motion
         is not trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`);
         ``'cross-view'`` deblurs each view at every alpha of :data:`CROSS_VIEW_ALPHAS` and
         keeps the one chosen by predicting the other view (:mod:`stereodeblur.pipeline.alpha`;
@@ -141,16 +148,17 @@ class DeblurSettings:
         Seed of the scene-flow estimator's random choices.
     boundary_weights : {'adaptive', 'gated', 'paper', 'none'}
         Handling of the pixels the blur model cannot explain (motion boundaries, motion
-        errors; Sec. 3): ``'adaptive'`` (default) keeps ``w = 1`` (but a small weight
+        errors; Sec. 3): ``'adaptive'`` keeps ``w = 1`` (but a small weight
         where the exposure path leaves the view); near the motion's flow discontinuities
         it takes the blur from the initial optical flow where the motion has one
         (:func:`stereodeblur.pipeline.boundary_motion`); without a dense flow, or with
         displacement kernels, it anchors the estimate to the blurred frame where the motion
         fails to predict both neighbouring frames instead (:mod:`stereodeblur.deconv.trust`),
         and homography kernels become occlusion-aware (:func:`stereodeblur.pipeline.visibility`);
-        ``'gated'`` the same without the anchor, and with the dense flow's rows only where
+        ``'gated'`` (default) the same without the anchor, and with the dense flow's rows only
+        where
         the dense flow predicts the neighbouring frames better than the motion by more than
-        :data:`GATE_MARGIN` in trust (:func:`stereodeblur.pipeline.dense_gate`);
+        :data:`GATE_MARGIN` in trust (:func:`stereodeblur.pipeline.gate_trusts`);
         ``'paper'`` Eq. 5 as published (:class:`~stereodeblur.deconv.weights.PaperWeights`,
         updated every IRLS iteration) started from the scene flow's occlusion mask (from 1
         without a scene flow); ``'none'`` ``w = 1``.

@@ -15,7 +15,7 @@ def test_defaults_are_the_module_constants():
     assert s.motion_source == "sceneflow" == defaults.DEFAULT_MOTION_SOURCE
     assert (s.num_samples, s.num_irls, s.num_cg) == (70, 10, 25)
     assert s.num_samples == defaults.NUM_SAMPLES and defaults.PAPER_ALPHA == 1e-3
-    assert (s.kernels, s.alpha, s.boundary_weights) == ("homography", "auto", "adaptive")
+    assert (s.kernels, s.alpha, s.boundary_weights) == ("homography", "auto", "gated")
     assert s.sceneflow == SceneFlowSettings()
 
 

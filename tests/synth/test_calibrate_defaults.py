@@ -33,17 +33,18 @@ def _row(runner, name, default, paper, best):
 
 def test_columns_cover_the_protocol(runner):
     keys = [(c.motion_source, c.key) for c in runner.columns_for(("gt", "sceneflow"))]
-    assert len(keys) == 2 * (4 + 2 * len(runner.ALPHAS)) + 1
+    assert len(keys) == 2 * (5 + 2 * len(runner.ALPHAS)) + 1
     assert len(set(keys)) == len(keys)
     assert ("initial-flow", "monocular") in keys and ("sceneflow", "paper") in keys
     columns = {c.key: c.settings() for c in runner.columns_for(("gt",))}
     assert columns["cross-view"].alpha == "cross-view"
     assert columns["cross-view"].boundary_weights == columns["default"].boundary_weights
-    gated = columns["gated-cross-view"]
-    assert (gated.alpha, gated.boundary_weights) == ("cross-view", "gated")
-    assert runner.grid_prefix("gated-cross-view") == "gated-"
-    assert columns["gated-alpha=0.001"].alpha == 1e-3
-    assert columns["gated-alpha=0.001"].boundary_weights == "gated"
+    other = columns["adaptive-cross-view"]
+    assert (other.alpha, other.boundary_weights) == ("cross-view", "adaptive")
+    assert runner.grid_prefix("adaptive-cross-view") == "adaptive-"
+    assert runner.grid_prefix("cross-view") == ""
+    assert columns["adaptive-alpha=0.001"].alpha == 1e-3
+    assert columns["adaptive-alpha=0.001"].boundary_weights == "adaptive"
     assert ("initial-flow", "monocular") not in [
         (c.motion_source, c.key) for c in runner.columns_for(("gt",))
     ]
@@ -70,18 +71,18 @@ def test_a_candidate_is_checked_like_the_default_against_its_own_grid(runner):
     rows = [_row(runner, "a", 30.0, 30.2, 30.3), _row(runner, "b", 25.0, 24.0, 25.4)]
     for row, psnr in zip(rows, (28.0, 25.3), strict=True):
         row["columns"]["gt/cross-view"] = {"psnr": psnr, "alpha": 1e-3}
-        row["columns"]["gt/gated-cross-view"] = {"psnr": psnr, "alpha": 1e-3}
-        for alpha in runner.ALPHAS:  # the gated grid peaks 2 dB lower
+        row["columns"]["gt/adaptive-cross-view"] = {"psnr": psnr, "alpha": 1e-3}
+        for alpha in runner.ALPHAS:  # the adaptive grid peaks 2 dB lower
             grid = row["columns"][f"gt/{runner.alpha_key(alpha)}"]
-            row["columns"][f"gt/gated-{runner.alpha_key(alpha)}"] = grid | {
+            row["columns"][f"gt/adaptive-{runner.alpha_key(alpha)}"] = grid | {
                 "psnr": grid["psnr"] - 2
             }
     assert all(ok for _, ok, _ in runner.checks(rows, ("gt",)))
     candidate = runner.checks(rows, ("gt",), "cross-view")
     assert [ok for _, ok, _ in candidate] == [False, False, False]  # 2.3 dB off on "a"
     assert all("cross-view" in name for name, _, _ in candidate)
-    gated = runner.checks(rows, ("gt",), "gated-cross-view")  # 0.3 dB off its own grid's best
-    assert [ok for _, ok, _ in gated] == [True, True, False]
+    other = runner.checks(rows, ("gt",), "adaptive-cross-view")  # 0.3 dB off its grid's best
+    assert [ok for _, ok, _ in other] == [True, True, False]
 
 
 def test_scene_lists_follow_the_split(runner):

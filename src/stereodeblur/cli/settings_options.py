@@ -133,12 +133,12 @@ def _options() -> tuple[SettingOption, ...]:
 OTHER_OPTIONS = {"scenes": "--scenes", "yaw": "--yaw", "depth": "--depth"}
 
 BOUNDARY_HELP = (
-    "motion boundaries: adaptive (default: blur from the dense optical flow near motion "
-    "boundaries; without one, each instant shows the surface covering the pixel then, pixels "
-    "showing surfaces hidden at the frame centre are down-weighted and the blurred frame is kept "
-    "where the motion does not predict the neighbouring frames), gated (the same without keeping "
-    "the blurred frame, and the dense flow's blur only where it predicts the neighbouring "
-    "frames clearly better) or paper (Eq. 5 data weights as published)"
+    "motion boundaries: gated (default: near motion boundaries the blur from the dense optical "
+    "flow where it predicts the neighbouring frames clearly better than the motion; without a "
+    "dense flow, each instant shows the surface covering the pixel then and pixels showing "
+    "surfaces hidden at the frame centre are down-weighted), adaptive (the dense flow's blur in "
+    "the whole band, and without one the blurred frame kept where the motion does not predict "
+    "the neighbouring frames) or paper (Eq. 5 data weights as published)"
 )
 
 

@@ -58,7 +58,14 @@ from .motion import (
     view_dense_flow,
     with_boundary_flow,
 )
-from .operator import ViewOperator, boundary_motion, build_operator, view_operator, visibility
+from .operator import (
+    GateTrusts,
+    ViewOperator,
+    boundary_motion,
+    build_operator,
+    view_operator,
+    visibility,
+)
 from .weights import DataTerms, data_terms, frame_trust, gate_trusts, resolve_alpha
 from .window import (
     FrameWindow,
@@ -81,6 +88,7 @@ __all__ = [
     "FrameMotion",
     "FrameResult",
     "FrameWindow",
+    "GateTrusts",
     "StereoFrameResult",
     "StereoMotion",
     "ViewOperator",

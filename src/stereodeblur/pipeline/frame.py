@@ -102,7 +102,8 @@ def build_view_operator(window: FrameWindow, motion: FrameMotion, settings: Debl
     """:func:`~.operator.view_operator` of ``motion``, gated by the trusts measured on
     ``window`` with ``boundary_weights='gated'``."""
     trusts = None
-    if settings.boundary_weights == "gated" and uses_boundary_flow(settings):
+    gated = settings.boundary_weights == "gated" and uses_boundary_flow(settings)
+    if gated and motion.boundary_flow is not None:
         from ..deconv.noise import estimate_noise_sigma
 
         sigma = estimate_noise_sigma(window.blurred(motion.view))

@@ -17,15 +17,25 @@ if TYPE_CHECKING:
 
 
 @dataclass(frozen=True)
+class GateTrusts:
+    """Trusts of a view's motion (``own``) and of its dense flow (``dense``) in the motion's
+    boundary band, float32 ``(H, W)``, and the noise level they were measured with
+    (``boundary_weights='gated'``, :func:`~stereodeblur.pipeline.gate_trusts`)."""
+
+    own: np.ndarray
+    dense: np.ndarray
+    noise_sigma: float
+
+
+@dataclass(frozen=True)
 class ViewOperator:
     """A view's blur operator and the motion it was built from.
 
     ``motion`` is the motion the operator uses (its 2D flows taken from the dense flow in
     the band ``flow_rows``, if any), ``own`` the motion before that (the scene flow's own);
     ``hidden`` the share of the exposure each pixel shows a surface the frame centre hides
-    (occlusion-aware operators, :func:`visibility`), else None; ``trusts`` the trusts of
-    ``own`` and of the dense flow that gated the band (``boundary_weights='gated'``), else
-    None.
+    (occlusion-aware operators, :func:`visibility`), else None; ``trusts`` the
+    :class:`GateTrusts` that gated the band (``boundary_weights='gated'``), else None.
     """
 
     operator: SparseBlur
@@ -33,7 +43,7 @@ class ViewOperator:
     own: FrameMotion
     flow_rows: np.ndarray | None = None
     hidden: np.ndarray | None = None
-    trusts: tuple[np.ndarray, np.ndarray] | None = None
+    trusts: GateTrusts | None = None
 
 
 def boundary_motion(
@@ -123,14 +133,13 @@ def view_operator(
 ):
     """The :class:`ViewOperator` of a view's motion under ``settings``.
 
-    ``trusts``: the trusts of ``motion`` and of its dense flow
-    (:func:`~stereodeblur.pipeline.gate_trusts`); the dense flow's rows are then taken only
-    where its trust is higher by more than :data:`~stereodeblur.settings.GATE_MARGIN`.
+    ``trusts`` (:class:`GateTrusts`): the dense flow's rows are then taken only where its
+    trust is higher than the motion's by more than :data:`~stereodeblur.settings.GATE_MARGIN`.
     """
     from ..settings import GATE_MARGIN
 
     own, flow_rows = motion, None
-    gate = None if trusts is None else trusts[1] > trusts[0] + GATE_MARGIN
+    gate = None if trusts is None else trusts.dense > trusts.own + GATE_MARGIN
     if uses_boundary_flow(settings) and motion.boundary_flow is not None:
         motion, flow_rows = boundary_motion(motion, exposure.duty_cycle, gate=gate)
     visible = visibility(motion, exposure, settings, flow_rows)

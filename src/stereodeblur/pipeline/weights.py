@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from .motion import FrameMotion
-from .operator import ViewOperator
+from .operator import GateTrusts, ViewOperator
 from .window import FrameWindow
 
 if TYPE_CHECKING:
@@ -117,7 +117,7 @@ def frame_trusts(
 
 def gate_trusts(
     window: FrameWindow, view: str, motion: FrameMotion, *, noise_sigma: float
-) -> tuple[np.ndarray, np.ndarray] | None:
+) -> GateTrusts | None:
     """:func:`frame_trust` of ``motion`` and of its dense flow, both in ``motion``'s
     boundary band; None without a dense flow (``boundary_weights='gated'``)."""
     from dataclasses import replace
@@ -137,7 +137,7 @@ def gate_trusts(
     own, dense = frame_trusts(
         window, view, (motion, dense), noise_sigma=noise_sigma, bands=(band, band)
     )
-    return own, dense
+    return GateTrusts(own, dense, noise_sigma)
 
 
 def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None, *, noise_sigma=None):
@@ -185,7 +185,8 @@ def data_terms(
     from ..deconv.weights import PaperWeights, hidden_weights, initial_weights_from_occlusion
 
     blurred = window.blurred(view)
-    sigma = estimate_noise_sigma(blurred)
+    gate = view_operator.trusts
+    sigma = estimate_noise_sigma(blurred) if gate is None else gate.noise_sigma
     motion, sf = view_operator.motion, view_operator.motion.sceneflow
     dense_rows = view_operator.flow_rows is not None
     shape = tuple(motion.flow_forward.shape[:2]) if sf is None else sf.shape
@@ -204,9 +205,9 @@ def data_terms(
         duty_cycle = window.exposure.duty_cycle
         outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
         weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
-        if view_operator.trusts is not None:  # 'gated': measured for the gate
-            own, dense = view_operator.trusts
-            trust, alpha_trust = np.where(view_operator.flow_rows, dense, own), own
+        if gate is not None:  # 'gated': measured for the gate
+            trust = np.where(view_operator.flow_rows, gate.dense, gate.own)
+            alpha_trust = gate.own
             trust = trust.astype(np.float32)
         else:
             motions, bands = [motion], [None]
