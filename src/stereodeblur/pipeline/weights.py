@@ -206,9 +206,8 @@ def data_terms(
         outside = leaves_view(motion.flow_forward, motion.flow_backward, duty_cycle)
         weights = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
         if gate is not None:  # 'gated': measured for the gate
-            trust = np.where(view_operator.flow_rows, gate.dense, gate.own)
+            trust = np.where(view_operator.flow_rows, gate.dense, gate.own).astype(np.float32)
             alpha_trust = gate.own
-            trust = trust.astype(np.float32)
         else:
             motions, bands = [motion], [None]
             if dense_rows and settings.alpha == "auto":  # and the own flow's, in its band
