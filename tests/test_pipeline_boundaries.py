@@ -199,9 +199,9 @@ def test_gated_takes_the_dense_rows_only_where_the_dense_flow_predicts_clearly_b
     np.testing.assert_array_equal(built.flow_rows, band & (dense > own + GATE_MARGIN))
     # A dense flow that is always clearly better takes the whole band, as 'adaptive' does;
     # one that never is leaves the scene flow's homographies (and no occlusion-aware rows).
-    ones, zeros = np.ones_like(own), np.zeros_like(own)
+    ones, untrusted = np.ones_like(own), np.where(band, 0, 1).astype(np.float32)  # 1 off the band
     everywhere = view_operator(
-        motion, window.exposure, settings, trusts=GateTrusts(zeros, ones, 0.01)
+        motion, window.exposure, settings, trusts=GateTrusts(untrusted, ones, 0.01)
     )
     adaptive = view_operator(
         motion,

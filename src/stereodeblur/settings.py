@@ -82,7 +82,8 @@ CROSS_VIEW_KEEP = 0.9
 # than 0.5 dB below the paper's settings 9 -> 6 / 15 -> 9; bench paper's objects +0.09 / -0.07
 # dB, planar scenes unchanged (benchmarks/results/paper_handlings_640x480.md).
 DEFAULT_BOUNDARY_WEIGHTS = "gated"
-# 'gated': the dense flow's rows only where its trust beats the scene flow's by this margin.
+# 'gated': the dense flow's rows only where its trust beats the scene flow's by this margin
+# (>= 0: the gate then lies within the boundary band, where the trusts are measured).
 # Training scenes, estimated motion: 0.1 and 0.25 alike (boundary_study_train_320x240.md,
 # 64 scenes at alpha 1e-3: +0.28 / +0.26 dB over the paper's w = 1, worst -0.53 / -0.41, all
 # rows -2.48; alpha_choice_train_320x240.md, 24 scenes: best alpha 0.20 dB below the paper's

@@ -47,7 +47,7 @@ class ViewOperator:
 
 
 def boundary_motion(
-    motion: FrameMotion, duty_cycle: float, *, gate=None
+    motion: FrameMotion, duty_cycle: float, *, band=None
 ) -> tuple[FrameMotion, np.ndarray]:
     """The motion with its 2D flows taken from ``motion.boundary_flow`` near motion boundaries.
 
@@ -57,13 +57,12 @@ def boundary_motion(
     kernels explain those pixels better (README, "Where the defaults come from"). Returns the
     motion and the boundary band (bool ``(H, W)``,
     :func:`~stereodeblur.deconv.trust.near_motion_boundaries` of the scene flow's 2D flow,
-    within ``gate`` if given): pass it to :func:`build_operator` as ``flow_rows``.
+    unless ``band`` gives it): pass it to :func:`build_operator` as ``flow_rows``.
     """
     from ..deconv.trust import near_motion_boundaries
 
-    band = near_motion_boundaries(motion.flow_forward, duty_cycle)
-    if gate is not None:
-        band &= gate
+    if band is None:
+        band = near_motion_boundaries(motion.flow_forward, duty_cycle)
     forward, backward = motion.boundary_flow
     backward = -forward if backward is None else backward
     inside = band[..., None]
@@ -134,14 +133,15 @@ def view_operator(
     """The :class:`ViewOperator` of a view's motion under ``settings``.
 
     ``trusts`` (:class:`GateTrusts`): the dense flow's rows are then taken only where its
-    trust is higher than the motion's by more than :data:`~stereodeblur.settings.GATE_MARGIN`.
+    trust is higher than the motion's by more than :data:`~stereodeblur.settings.GATE_MARGIN`
+    (within the boundary band: both trusts are 1 outside it).
     """
     from ..settings import GATE_MARGIN
 
     own, flow_rows = motion, None
     gate = None if trusts is None else trusts.dense > trusts.own + GATE_MARGIN
     if uses_boundary_flow(settings) and motion.boundary_flow is not None:
-        motion, flow_rows = boundary_motion(motion, exposure.duty_cycle, gate=gate)
+        motion, flow_rows = boundary_motion(motion, exposure.duty_cycle, band=gate)
     visible = visibility(motion, exposure, settings, flow_rows)
     operator = build_operator(motion, exposure, settings, flow_rows=flow_rows, visible=visible)
     hidden = None

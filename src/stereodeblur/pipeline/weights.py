@@ -119,7 +119,7 @@ def gate_trusts(
     window: FrameWindow, view: str, motion: FrameMotion, *, noise_sigma: float
 ) -> GateTrusts | None:
     """:func:`frame_trust` of ``motion`` and of its dense flow, both in ``motion``'s
-    boundary band; None without a dense flow (``boundary_weights='gated'``)."""
+    boundary band (1 outside it); None without a dense flow (``boundary_weights='gated'``)."""
     from dataclasses import replace
 
     from ..deconv.trust import near_motion_boundaries
