@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_stereo_frame.py                  # spheres, 640x480, median of 3
     python benchmarks/bench_stereo_frame.py --scene squares --repeats 5 --json out.json
     python benchmarks/bench_stereo_frame.py --alpha cross-view   # a setting other than the default
+    python benchmarks/bench_stereo_frame.py --observations single
 
 An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. A
 warm-up process on a 64x48 rendering of the same scene compiles the numba kernels into
@@ -47,9 +48,9 @@ def render(work: Path, name: str, size: tuple[int, int]) -> Path:
     return root
 
 
-def child(scene_path: str, output: str, alpha: str | None = None) -> None:
-    """One stereo frame in this process (``alpha``: instead of the default); prints the
-    stage timings as JSON."""
+def child(scene_path: str, output: str, options: dict) -> None:
+    """One stereo frame in this process (``options``: settings instead of the default,
+    ``alpha`` and ``observations`` as on the command line); prints the stage timings as JSON."""
     start = time.perf_counter()
     from stereodeblur import pipeline
     from stereodeblur.io.scene import SceneWriter, open_scene
@@ -57,11 +58,11 @@ def child(scene_path: str, output: str, alpha: str | None = None) -> None:
     scene = open_scene(scene_path)
     stages = {}
     if hasattr(pipeline, "deblur_stereo_frame"):
-        settings = None
-        if alpha is not None:
-            from stereodeblur.cli.settings_options import alpha as alpha_option
+        from stereodeblur.cli.settings_options import alpha as alpha_option
 
-            settings = pipeline.DeblurSettings(alpha=alpha_option(alpha))
+        if "alpha" in options:
+            options = options | {"alpha": alpha_option(options["alpha"])}
+        settings = pipeline.DeblurSettings(**options)
         stereo = pipeline.deblur_stereo_frame(scene, INDEX, views=VIEWS, settings=settings)
         frames = stereo.frames
         stages.update(stereo.timings)
@@ -78,27 +79,28 @@ def child(scene_path: str, output: str, alpha: str | None = None) -> None:
     print(json.dumps(stages))
 
 
-def process(scene: Path, output: Path, alpha: str | None = None) -> tuple[float, dict]:
+def process(scene: Path, output: Path, options: dict) -> tuple[float, dict]:
     """Wall seconds and the stage timings of one child process."""
     command = [sys.executable, __file__, "--child", str(scene), str(output)]
-    command += [] if alpha is None else ["--alpha", alpha]
+    for name, value in options.items():
+        command += [f"--{name}", value]
     start = time.perf_counter()
     done = subprocess.run(command, check=True, capture_output=True, text=True)
     return time.perf_counter() - start, json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def run(scene: Path, output: Path, repeats: int, warmup: Path, alpha=None) -> dict:
+def run(scene: Path, output: Path, repeats: int, warmup: Path, options: dict) -> dict:
     """Median wall seconds and stage timings of ``repeats`` child processes."""
-    warm, _ = process(warmup, output.with_name(output.name + "-warmup"), alpha)
+    warm, _ = process(warmup, output.with_name(output.name + "-warmup"), options)
     walls, runs = [], []
     for _ in range(repeats):
-        wall, stages = process(scene, output, alpha)
+        wall, stages = process(scene, output, options)
         walls.append(wall)
         runs.append(stages)
     stages = {key: round(statistics.median(r[key] for r in runs), 2) for key in runs[0]}
     return {
         "scene": scene.name,
-        "alpha": alpha or "default",
+        "settings": options or "default",
         "repeats": repeats,
         "warmup_s": round(warm, 2),
         "wall_s": round(statistics.median(walls), 2),
@@ -116,16 +118,22 @@ def main() -> None:
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "sd-bench")
     parser.add_argument("--json", type=Path, help="also write the result here")
     parser.add_argument("--alpha", help="--alpha of the run (default: the settings' default)")
+    parser.add_argument("--observations", help="--observations of the run (default: the default)")
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    options = {
+        name: getattr(args, name)
+        for name in ("alpha", "observations")
+        if getattr(args, name) is not None
+    }
     if args.child:
-        child(*args.child, args.alpha)
+        child(*args.child, options)
         return
     width, height = (int(v) for v in args.size.lower().split("x"))
     args.work.mkdir(parents=True, exist_ok=True)
     scene = render(args.work, args.scene, (width, height))
     warmup = render(args.work, args.scene, (64, 48))
-    result = run(scene, args.work / f"{scene.name}-out", args.repeats, warmup, args.alpha)
+    result = run(scene, args.work / f"{scene.name}-out", args.repeats, warmup, options)
     print(json.dumps(result, indent=2))
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")

@@ -27,8 +27,10 @@ estimated), the motion computed once per scene and source
   for a candidate's other handling;
 
 and once with the monocular path with the same defaults (``motion_source='initial-flow',
-kernels='displacement'``). PSNR and SSIM are measured against gt/sharp without a border of
-2.5 % of the width (at least 4 px), as ``stereodeblur bench paper`` does.
+kernels='displacement'``, with the boundary handling of its strongest version,
+:data:`~stereodeblur.settings.MONOCULAR_BOUNDARY_WEIGHTS`). PSNR and SSIM are measured
+against gt/sharp without a border of 2.5 % of the width (at least 4 px), as
+``stereodeblur bench paper`` does.
 
 Checks (issue 12), per motion source: the default is within 0.5 dB of the best alpha on
 average and within 1.5 dB on every scene, and never more than 0.5 dB below the paper's
@@ -82,9 +84,14 @@ class Column:
 
     def settings(self):
         from stereodeblur.pipeline import DeblurSettings
+        from stereodeblur.settings import MONOCULAR_BOUNDARY_WEIGHTS
 
         if self.motion_source == "initial-flow":
-            return DeblurSettings(motion_source="initial-flow", kernels="displacement")
+            return DeblurSettings(
+                motion_source="initial-flow",
+                kernels="displacement",
+                boundary_weights=MONOCULAR_BOUNDARY_WEIGHTS,
+            )
         return DeblurSettings(motion_source=self.motion_source, **self.overrides)
 
 
@@ -148,6 +155,12 @@ def _log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
+def _signature(settings) -> str:
+    """What a cached column depends on: the settings (``observations`` only when not
+    ``'single'``, so results from before that option stay valid)."""
+    return repr(settings).replace(", observations='single'", "")
+
+
 def _cached(path: Path, signature: str) -> dict | None:
     if path.is_file():
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -161,14 +174,21 @@ def run_column(scene, column: Column, motion, truth) -> dict:
     import warnings
 
     from stereodeblur.evaluation.metrics import psnr, ssim
-    from stereodeblur.pipeline import deblur_frame
+    from stereodeblur.pipeline import deblur_frame, deblur_stereo_frame
+    from stereodeblur.pipeline.frame import needs_stereo_pass
 
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         settings = column.settings()
-        given = None if settings.alpha == "cross-view" else motion  # it needs both views
-        result = deblur_frame(scene, FRAME, view="left", settings=settings, motion=given)
+        if needs_stereo_pass(settings):  # both views' motion, from the cached scene flow
+            sf = motion.sceneflow if settings.motion_source == "sceneflow" else None
+            stereo = deblur_stereo_frame(
+                scene, FRAME, views=("left",), settings=settings, sceneflow=sf
+            )
+            result = stereo.frames["left"]
+        else:
+            result = deblur_frame(scene, FRAME, view="left", settings=settings, motion=motion)
     seconds = time.perf_counter() - start
     border = border_of(truth.shape[1])
     return {
@@ -265,7 +285,7 @@ def run_scene(task) -> dict:
     results, motion_seconds, motion_cache = {}, {}, {}
     for column in columns_for(motions):
         name = f"{column.motion_source}/{column.key}"
-        signature = repr(column.settings())
+        signature = _signature(column.settings())
         path = cache / f"{column.motion_source}_{column.key}.json"
         data = _cached(path, signature)
         if data is None:
@@ -285,7 +305,7 @@ def run_scene(task) -> dict:
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"
-        signature = repr(Column("default", source).settings()) + FEATURES_VERSION
+        signature = _signature(Column("default", source).settings()) + FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:
             if source not in motion_cache:

@@ -27,7 +27,11 @@ __all__ = [
     "DEFAULT_BOUNDARY_WEIGHTS",
     "DEFAULT_KERNELS",
     "DEFAULT_MOTION_SOURCE",
+    "DEFAULT_OBSERVATIONS",
     "GATE_MARGIN",
+    "MONOCULAR_BOUNDARY_WEIGHTS",
+    "OBSERVATIONS",
+    "OBSERVATION_ROBUST_SCALE",
     "KERNELS",
     "MOTION_SOURCES",
     "NUM_CG",
@@ -44,6 +48,7 @@ KERNELS = ("homography", "displacement")
 MOTION_SOURCES = ("gt", "sceneflow", "initial-flow")
 BOUNDARY_WEIGHTS = ("adaptive", "gated", "paper", "none")
 BOUNDARY_MASKS = (None, "gt")
+OBSERVATIONS = ("single", "other-view", "neighbours", "all")
 
 # The paper's N = 70 instants per exposure (Sec. 4); the speed table of README.md
 # ("Speed and memory") and every quality table are measured with it.
@@ -90,6 +95,19 @@ DEFAULT_BOUNDARY_WEIGHTS = "gated"
 # at worst for both); bench paper's object scenes at 640x480 (benchmarks/results/
 # paper_handlings_640x480.md): 0.1 +0.09 / -0.07 dB against 'adaptive', 0.25 -0.12 / -0.41.
 GATE_MARGIN = 0.1
+# The monocular baseline (initial flow, displacement kernels) the stereo method is compared
+# with keeps 'adaptive': its anchor helps displacement kernels, which 'gated' drops (test
+# split, 40 scenes at 320x240: 28.50 dB against 27.99 dB; calibrate_defaults_test_320x240.md).
+MONOCULAR_BOUNDARY_WEIGHTS = "adaptive"
+# Each view's sharp frame from its own blurred frame (the paper's): the further observations
+# gain on the noisy scenes of `bench paper` but lose up to 1.05 dB on its noiseless planar ones,
+# whose single-observation results are limited by the model's precision
+# (results/paper_observations_640x480.md, issue 13).
+DEFAULT_OBSERVATIONS = "single"
+# Residual scale of the further observations' Cauchy weights: without them they lose 1-4 dB
+# with the estimated scene flow, with 0.01 they gain 0.2-0.3 dB (issue 13 study,
+# benchmarks/README.md "Multi-observation study", 320x240 object scenes).
+OBSERVATION_ROBUST_SCALE = 0.01
 
 # Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre
 # instant alone, an identity "blur"; the operator's memory grows with samples x pixels (about
@@ -166,6 +184,13 @@ class DeblurSettings:
     boundary_mask : {None, 'gt'}
         ``'gt'``: the scene's gt/mixed pixels get weight 0 throughout (the paper's
         masked experiment, Table 2), on top of ``boundary_weights``.
+    observations : {'single', 'other-view', 'neighbours', 'all'}
+        The blurred images each view's sharp frame is estimated from: ``'single'`` its own
+        (the paper's); ``'other-view'`` also the other view's frame, ``'neighbours'`` also the
+        view's frames before and after, ``'all'`` both
+        (:mod:`stereodeblur.pipeline.observations`;
+        weighted by their residual, :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow:
+        with ``motion_source='initial-flow'`` every frame has its single observation.
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -182,6 +207,7 @@ class DeblurSettings:
     seed: int = 0
     boundary_weights: str = DEFAULT_BOUNDARY_WEIGHTS
     boundary_mask: str | None = None
+    observations: str = DEFAULT_OBSERVATIONS
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -224,6 +250,10 @@ class DeblurSettings:
             )
         if self.boundary_mask not in BOUNDARY_MASKS:
             raise InputError(f"boundary mask must be 'gt' or None, got {self.boundary_mask!r}")
+        if self.observations not in OBSERVATIONS:
+            raise InputError(
+                f"observations must be one of {', '.join(OBSERVATIONS)}, got {self.observations!r}"
+            )
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(
                 f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"

@@ -6,6 +6,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from stereodeblur.deconv import deblur_irls, gradient, gradient_adjoint
+from stereodeblur.deconv.irls import Observation
 from stereodeblur.errors import InputError
 
 
@@ -323,3 +324,54 @@ def test_bad_input(box_blur):
         deblur_irls(np.zeros(16), operator)
     with pytest.raises(InputError, match="update_weights"):
         deblur_irls(image, operator, num_irls=2, update_weights=lambda *args: np.ones((3, 3)))
+
+
+# --- further observations -----------------------------------------------------------------
+
+
+def test_an_observation_adds_its_data_term(colour_image, box_blur):
+    """The same blurred frame observed twice with weights w is one observation with w sqrt 2."""
+    shape = (32, 48)
+    operator = box_blur(shape, 5, 9, seed=10)
+    blurred = operator.forward(colour_image(shape))
+    weights = np.random.default_rng(10).uniform(0.2, 0.7, shape).astype(np.float32)
+    twice = deblur_irls(
+        blurred,
+        operator,
+        weights=weights,
+        num_irls=3,
+        observations=[Observation(operator, blurred, weights)],
+    )
+    once = deblur_irls(blurred, operator, weights=weights * np.sqrt(2), num_irls=3)
+    np.testing.assert_allclose(twice.image, once.image, atol=2e-4)
+    assert [e.energy for e in twice.history] == pytest.approx(
+        [e.energy for e in once.history], rel=1e-4
+    )
+
+
+def test_robust_weights_drop_an_observation_the_operator_does_not_explain(camera_image, box_blur):
+    shape = (32, 48)
+    sharp, operator, blurred = blurred_camera(camera_image, box_blur, shape, seed=11)
+    alone = deblur_irls(blurred, operator, num_irls=5)
+    wrong = np.random.default_rng(11).random(shape).astype(np.float32)  # another image
+    bad = [Observation(operator, wrong, np.ones(shape, np.float32))]
+    plain = deblur_irls(blurred, operator, num_irls=5, observations=bad)
+    robust = deblur_irls(blurred, operator, num_irls=5, observations=bad, robust_scale=0.01)
+    assert psnr(plain.image, sharp) < psnr(alone.image, sharp) - 3
+    assert psnr(robust.image, sharp) > psnr(alone.image, sharp) - 0.5
+    # a second, correct observation with other noise helps
+    noisy = operator.forward(sharp) + np.random.default_rng(12).normal(0, 0.005, shape)
+    good = [Observation(operator, noisy.astype(np.float32), np.ones(shape, np.float32))]
+    both = deblur_irls(blurred, operator, num_irls=5, observations=good, robust_scale=0.01)
+    assert psnr(both.image, sharp) > psnr(alone.image, sharp) + 0.3
+
+
+def test_bad_observations(box_blur):
+    operator = box_blur((16, 16), 3, 5)
+    image = np.zeros((16, 16), np.float32)
+    with pytest.raises(InputError, match="observation blurred"):
+        deblur_irls(image, operator, observations=[Observation(operator, image[:8], image)])
+    with pytest.raises(InputError, match="observation weights"):
+        deblur_irls(image, operator, observations=[Observation(operator, image, image + 2)])
+    with pytest.raises(InputError, match="robust_scale"):
+        deblur_irls(image, operator, robust_scale=0.0)

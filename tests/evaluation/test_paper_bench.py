@@ -43,7 +43,8 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     text = capsys.readouterr().out
     for column in COLUMNS:
         assert column.title in text
-    for heading in ("Table 2", "Table 3", "Table 4", "true motion", "Alpha sweep", "weights"):
+    headings = ("Table 2", "Table 3", "Table 4", "gt/mixed", "true motion", "Alpha", "weights")
+    for heading in headings:
         assert heading in text
     folder = work / "64x48"
     assert (folder / "paper.md").read_text() == text.rstrip("\n") + "\n"
@@ -60,6 +61,11 @@ def test_bench_on_a_tiny_scene_fills_every_column_and_resumes(tmp_path, capsys, 
     assert not math.isnan(row["columns"]["initial-flow"]["aep"])
     assert math.isnan(row["columns"]["ours-true-motion"]["aep"])
     assert "ours with the true motion - initial optical flow" in text
+    assert "ours (full) - monocular (same defaults)" in text
+    assert 2e-5 <= row["columns"]["monocular"]["alpha"] <= 3e-3  # auto
+    assert not math.isnan(row["columns"]["monocular"]["aep"])
+    for key, entry in row["columns"].items():
+        assert 0 <= entry["mixed_mse"] < 0.1, key  # the tiny scene has gt/mixed pixels
     assert 0 <= row["columns"]["ours-full"]["changed_last_percent"] <= 100
     figure = read_png(folder / "figures" / "squares.png")
     assert figure.shape[1] == 64 * (len(COLUMNS) + 2)

@@ -106,6 +106,13 @@ def _options() -> tuple[SettingOption, ...]:
             choices=tuple(m for m in s.BOUNDARY_MASKS if m is not None),
         ),
         SettingOption(
+            "observations",
+            "--observations",
+            "blurred images each view is estimated from: single (its own; paper), other-view, "
+            "neighbours (its frames before and after) or all (default: %(default)s)",
+            choices=tuple(s.OBSERVATIONS),
+        ),
+        SettingOption(
             "num_irls",
             "--irls",
             f"IRLS iterations, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 10)",

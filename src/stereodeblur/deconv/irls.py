@@ -30,7 +30,30 @@ from stereodeblur.deconv.prior import (
 from stereodeblur.errors import InputError
 from stereodeblur.progress import ProgressCallback, report
 
-__all__ = ["DeblurResult", "IrlsIterate", "deblur_irls", "gradient", "gradient_adjoint"]
+__all__ = [
+    "DeblurResult",
+    "IrlsIterate",
+    "Observation",
+    "deblur_irls",
+    "gradient",
+    "gradient_adjoint",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class Observation:
+    """A further blurred observation of the estimate: ``blurred ~ operator(I)``.
+
+    Adds ``sum_x || w(x) (B_k(x) - (A_k I)(x)) ||^2`` to the data term of
+    :func:`deblur_irls`. ``operator`` has ``forward`` and ``adjoint`` (and optionally
+    ``gram``) on images of the estimate's shape, e.g. a blur composed with a warp;
+    ``blurred`` has the estimate's shape; ``weights`` ``(H, W)`` in [0, 1] (0 where the
+    observation does not see the estimate).
+    """
+
+    operator: object
+    blurred: np.ndarray
+    weights: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -185,6 +208,62 @@ def _owned(array: np.ndarray, other: np.ndarray) -> np.ndarray:
     return array
 
 
+def _forward(operator, image3d, shape):
+    return _as_3d(np.asarray(operator.forward(image3d.reshape(shape)), dtype=np.float32))
+
+
+def _adjoint(operator, image3d, shape):
+    return _as_3d(np.asarray(operator.adjoint(image3d.reshape(shape)), dtype=np.float32))
+
+
+def _gram(operator, p3, squared, unit, shape):
+    """``A^T W^2 A p`` (in one pass if ``operator`` offers ``gram``)."""
+    gram = getattr(operator, "gram", None)
+    if gram is not None:
+        return gram(p3.reshape(shape), None if unit else squared.reshape(shape[:2]))
+    ap = _forward(operator, p3, shape)
+    if not unit:
+        ap = _owned(ap, p3)
+        _scale_pixels(ap, squared)
+    return _adjoint(operator, ap, shape)
+
+
+class _Extra:
+    """An :class:`Observation` in the normal equations, with its robust weights.
+
+    ``squared`` is ``w^2 / (1 + (r / scale)^2)`` after :meth:`reweight` (``r``: the RMS over
+    channels of ``B_k - A_k I``), ``w^2`` before.
+    """
+
+    def __init__(self, observation: Observation, shape):
+        self.operator, self.shape = observation.operator, shape
+        self.b3 = _check_image(observation.blurred, shape, "observation blurred")
+        base = _check_weights(observation.weights, shape[:2], "observation weights")
+        self.base = base * base
+        self.squared = self.base.copy()
+        self.residual = np.empty_like(self.b3)
+        self.partial = np.empty((shape[0], 1), np.float64)
+
+    def rhs(self):
+        weighted = self.b3.copy()
+        _scale_pixels(weighted, self.squared)
+        return _adjoint(self.operator, weighted, self.shape)
+
+    def data_term(self, estimate3d) -> float:
+        reblurred = np.ascontiguousarray(_forward(self.operator, estimate3d, self.shape))
+        _residual(self.b3, reblurred, self.squared, self.residual, self.partial)
+        return float(self.partial.sum())
+
+    def start_residual(self):
+        weighted = self.residual.copy()
+        _scale_pixels(weighted, self.squared)
+        return _adjoint(self.operator, weighted, self.shape)
+
+    def reweight(self, scale: float) -> None:
+        r2 = np.mean(self.residual.astype(np.float64) ** 2, axis=2)
+        self.squared = (self.base / (1.0 + r2 / scale**2)).astype(np.float32)
+
+
 class _NormalEquations:
     """The data and prior terms of Eq. 6 and the IRLS normal equations of Eq. 8.
 
@@ -193,10 +272,10 @@ class _NormalEquations:
     ``B - A I`` of the last :meth:`data_term` call.
     """
 
-    def __init__(self, blurred3, shape, operator, alpha, exponent, epsilon, beta):
+    def __init__(self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=()):
         self.b3, self.shape, self.operator = blurred3, shape, operator
+        self.extras = list(extras)
         self.alpha, self.exponent, self.epsilon = float(alpha), float(exponent), float(epsilon)
-        self.gram = getattr(operator, "gram", None)  # A^T W^2 A in one pass, if offered
         self.beta3 = None
         if beta is not None:
             self.beta3 = np.ascontiguousarray(np.broadcast_to(beta[..., None], blurred3.shape))
@@ -209,12 +288,10 @@ class _NormalEquations:
         self.channel_partial = np.empty((rows, channels), np.float64)
 
     def forward(self, image3d):
-        image = self.operator.forward(image3d.reshape(self.shape))
-        return _as_3d(np.asarray(image, dtype=np.float32))
+        return _forward(self.operator, image3d, self.shape)
 
     def adjoint(self, image3d):
-        image = self.operator.adjoint(image3d.reshape(self.shape))
-        return _as_3d(np.asarray(image, dtype=np.float32))
+        return _adjoint(self.operator, image3d, self.shape)
 
     def set_weights(self, w) -> None:
         """Data weights ``w``: ``W^2``, the right-hand side ``A^T W^2 B (+ beta B)``, its norm."""
@@ -224,6 +301,8 @@ class _NormalEquations:
         weighted_b = self.b3.copy()
         _scale_pixels(weighted_b, self.squared)
         self.rhs = np.array(self.adjoint(weighted_b), dtype=np.float32, order="C")
+        for extra in self.extras:
+            self.rhs += extra.rhs()
         if self.beta3 is not None:
             self.rhs += self.beta3 * self.b3
         norm = np.sqrt(np.einsum("ijc,ijc->c", self.rhs, self.rhs, dtype=np.float64))
@@ -231,16 +310,10 @@ class _NormalEquations:
 
     def apply(self, p3, row_dots):
         """``(A^T W^2 A + D^T rho D + beta) p``; the row sums of ``p * (that)`` to ``row_dots``."""
-        if self.gram is not None:
-            squared = None if self.unit_weights else self.squared.reshape(self.shape[:2])
-            q = self.gram(p3.reshape(self.shape), squared)
-        else:
-            ap = self.forward(p3)
-            if not self.unit_weights:
-                ap = _owned(ap, p3)
-                _scale_pixels(ap, self.squared)
-            q = self.adjoint(ap)
+        q = _gram(self.operator, p3, self.squared, self.unit_weights, self.shape)
         q = _owned(_as_3d(np.asarray(q)), p3)
+        for extra in self.extras:
+            q += _as_3d(np.asarray(_gram(extra.operator, p3, extra.squared, False, self.shape)))
         if self.beta3 is not None:
             np.multiply(self.beta3, p3, out=self.anchored)
             q += self.anchored
@@ -252,6 +325,7 @@ class _NormalEquations:
         reblurred = np.ascontiguousarray(self.forward(estimate3d))
         _residual(self.b3, reblurred, self.squared, self.residual, self.partial)
         data = float(self.partial.sum())
+        data += sum(extra.data_term(estimate3d) for extra in self.extras)
         if self.beta3 is not None:
             difference = (estimate3d - self.b3) ** 2
             data += float(np.einsum("ijc,ijc->", self.beta3, difference, dtype=np.float64))
@@ -272,6 +346,8 @@ class _NormalEquations:
         if not self.unit_weights:
             _scale_pixels(self.residual, self.squared)
         start = np.array(self.adjoint(self.residual), dtype=np.float32, order="C")
+        for extra in self.extras:
+            start += extra.start_residual()
         correction = np.zeros_like(start)
         add_weighted_laplacian(estimate3d, self.wx, self.wy, correction, self.channel_partial)
         start -= correction
@@ -322,6 +398,8 @@ def deblur_irls(
     update_weights: Callable | None = None,
     anchor: np.ndarray | None = None,
     initial: np.ndarray | None = None,
+    observations=(),
+    robust_scale: float | None = None,
     progress: ProgressCallback | None = None,
 ) -> DeblurResult:
     """Deblur ``blurred`` by IRLS on a weighted least-squares data term and ``|d I|^p`` prior.
@@ -379,6 +457,15 @@ def deblur_irls(
         Starting estimate ``I^0`` (a warm start, e.g. the other view's result warped into
         this one); the blurred frame by default. Only the starting point changes: the
         energy, the weights' first evaluation and every iteration use it in place of ``B``.
+    observations : sequence of Observation
+        Further data terms ``sum_x || w_k(x) (B_k(x) - A_k I(x)) ||^2`` (e.g. the other
+        view or the neighbouring frames warped to this one), summed into the energy and the
+        normal equations.
+    robust_scale : float, optional
+        With ``observations``: from iteration 1 on, each observation's squared weights are
+        ``w_k^2 / (1 + (r / robust_scale)^2)`` with ``r`` its residual's RMS over channels at
+        the current estimate (Cauchy IRLS weights), so that what the warp does not explain
+        drops out; with ``initial``, from iteration 0 on.
     progress : ProgressCallback, optional
         Receives ``Progress("IRLS", completed, num_irls)`` after each IRLS iteration.
 
@@ -389,6 +476,8 @@ def deblur_irls(
     """
     blurred = np.asarray(blurred)
     _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_cg)
+    if robust_scale is not None and not (np.isfinite(robust_scale) and robust_scale > 0):
+        raise InputError(f"robust_scale must be a positive number, got {robust_scale!r}")
     with threads_for(blurred.size):
         return _deblur(
             blurred,
@@ -400,6 +489,8 @@ def deblur_irls(
             update_weights=update_weights,
             anchor=anchor,
             initial=initial,
+            observations=tuple(observations),
+            robust_scale=robust_scale,
             progress=progress,
         )
 
@@ -415,6 +506,8 @@ def _deblur(
     update_weights,
     anchor,
     initial,
+    observations,
+    robust_scale,
     progress,
 ) -> DeblurResult:
     """The body of :func:`deblur_irls` on validated arguments (``settings``: alpha, p, eps)."""
@@ -422,7 +515,9 @@ def _deblur(
     plane = shape[:2]
     b3 = _check_image(blurred, shape, "blurred")
     w = np.ones(plane, np.float32) if weights is None else _check_weights(weights, plane, "weights")
-    system = _NormalEquations(b3, shape, operator, *settings, _check_anchor(anchor, plane))
+    extras = [_Extra(o, shape) for o in observations]
+    beta = _check_anchor(anchor, plane)
+    system = _NormalEquations(b3, shape, operator, *settings, beta, extras)
     system.set_weights(w)
     estimate = b3.copy() if initial is None else _check_image(initial, shape, "initial")
     history = [system.energy(0, estimate, None)]
@@ -437,6 +532,11 @@ def _deblur(
                 _read_only(w),
             )
             w = _check_weights(new, plane, "update_weights result")
+        started = n >= 1 or initial is not None  # the residual is an estimate's
+        reweight = started and robust_scale is not None and bool(extras)
+        for extra in extras if reweight else ():
+            extra.reweight(robust_scale)
+        if n >= 1 and (update_weights is not None or reweight):
             system.set_weights(w)
         if weights_history is not None:
             weights_history.append(w)

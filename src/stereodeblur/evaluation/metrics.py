@@ -28,6 +28,19 @@ def psnr(
     return float("inf") if mse == 0 else 10 * np.log10(peak**2 / mse)
 
 
+def masked_mse(
+    estimate: np.ndarray, reference: np.ndarray, mask: np.ndarray, *, border: int = 0
+) -> float:
+    """Mean squared error of ``estimate`` clipped to [0, 1] over the pixels of ``mask``
+    (and channels); NaN if ``mask`` is empty."""
+    inside = _crop(np.asarray(mask, dtype=bool), border)
+    if not inside.any():
+        return float("nan")
+    e = _crop(np.clip(np.asarray(estimate, dtype=np.float64), 0, 1), border)
+    r = _crop(np.asarray(reference, dtype=np.float64), border)
+    return float(np.mean((e - r)[inside] ** 2))
+
+
 def ssim(estimate: np.ndarray, reference: np.ndarray, *, border: int = 0) -> float:
     """Structural similarity (Wang et al. 2004, Gaussian window) of images in [0, 1]."""
     from skimage.metrics import structural_similarity

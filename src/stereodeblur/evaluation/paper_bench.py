@@ -214,13 +214,20 @@ def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) 
 
 def run_column(scene, column: Column, base_settings: DeblurSettings, motion, truth: dict) -> tuple:
     """Deblur frame 1 with ``column``; returns ``(ColumnResult, image)``."""
-    from ..pipeline import deblur_frame
-    from .metrics import border_for, disparity_error, endpoint_error, psnr, ssim
+    from ..pipeline import deblur_frame, deblur_stereo_frame
+    from ..pipeline.frame import needs_stereo_pass
+    from .metrics import border_for, disparity_error, endpoint_error, masked_mse, psnr, ssim
 
     settings = column.settings(base_settings)
-    given = None if settings.alpha == "cross-view" else motion  # it needs both views'
     start = time.perf_counter()
-    result, _ = _quiet(deblur_frame, scene, FRAME, settings=settings, motion=given)
+    if needs_stereo_pass(settings):  # both views' motion, from the cached scene flow
+        sf = motion.sceneflow if settings.motion_source == "sceneflow" else None
+        stereo, _ = _quiet(
+            deblur_stereo_frame, scene, FRAME, views=("left",), settings=settings, sceneflow=sf
+        )
+        result = stereo.frames["left"]
+    else:
+        result, _ = _quiet(deblur_frame, scene, FRAME, settings=settings, motion=motion)
     seconds = time.perf_counter() - start
     sharp = truth["sharp"]
     border = border_for(sharp.shape[1])
@@ -243,6 +250,7 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
             alpha=float(result.alpha),
             seconds=seconds,
             signature=_signature(column, base_settings),
+            mixed_mse=masked_mse(image, sharp, truth["mixed"] > 0, border=border),
             **stats,
         ),
         image,
@@ -250,8 +258,12 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 
 
 def _signature(column: Column, settings) -> dict:
-    """What a cached result depends on."""
-    return {**asdict(column.settings(settings)), "frame": FRAME}
+    """What a cached result depends on (``observations`` only when not ``'single'``, so
+    results from before that option stay valid)."""
+    fields = asdict(column.settings(settings))
+    if fields["observations"] == "single":
+        del fields["observations"]
+    return {**fields, "frame": FRAME}
 
 
 def _read_cached(path: Path) -> dict | None:
@@ -277,8 +289,9 @@ def evaluate_scene(
     """All ``columns`` on the scene at ``root``, reusing results cached under ``cache``."""
     from ..io.formats import write_png
     from ..io.outputs import atomic_write_text
+    from ..io.png import read_png
     from ..io.scene import open_scene
-    from .metrics import border_for, psnr, ssim
+    from .metrics import border_for, masked_mse, psnr, ssim
 
     scene = open_scene(root)
     name = root.name
@@ -299,6 +312,12 @@ def evaluate_scene(
         signature = _signature(column, base_settings)
         cached = _read_cached(json_path)
         if cached is not None and cached.get("signature") == json.loads(json.dumps(signature)):
+            if "mixed_mse" not in cached:  # cached before it was measured: from the image
+                image = read_png(cache / f"{column.key}.png")
+                cached["mixed_mse"] = masked_mse(
+                    image, truth["sharp"], truth["mixed"] > 0, border=border
+                )
+                atomic_write_text(json_path, json.dumps(cached, indent=1))
             results[column.key] = ColumnResult(**cached)
             continue
         if column.motion_source not in motions:
@@ -330,6 +349,7 @@ def evaluate_scene(
         size=f"{blurred.shape[1]}x{blurred.shape[0]}",
         psnr_blurred=psnr(blurred, truth["sharp"], border=border),
         ssim_blurred=ssim(blurred, truth["sharp"], border=border),
+        mixed_mse_blurred=masked_mse(blurred, truth["sharp"], truth["mixed"] > 0, border=border),
         columns={k: asdict(v) for k, v in results.items()},
         sceneflow_seconds=sceneflow_seconds,
         warnings=tuple(dict.fromkeys(messages)),

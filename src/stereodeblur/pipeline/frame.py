@@ -20,9 +20,18 @@ from ..progress import ProgressCallback, prefixed, report
 from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
 from .alpha import OtherView, choose, other_view, prediction_error
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
+from .observations import NamedObservation, view_observations
 from .operator import view_operator
 from .weights import DataTerms, data_terms, gate_trusts
-from .window import VIEWS, FrameWindow, check_gt, check_views, read_window, uses_boundary_flow
+from .window import (
+    VIEWS,
+    FrameWindow,
+    check_gt,
+    check_views,
+    observation_kinds,
+    read_window,
+    uses_boundary_flow,
+)
 
 if TYPE_CHECKING:
     from ..io.protocol import StereoScene
@@ -39,7 +48,10 @@ class FrameResult:
     the blur model per pixel (``boundary_weights='adaptive'`` or ``'gated'``, else None).
     ``timings``: seconds of ``'motion'`` (reading the frames included; from
     :func:`deblur_stereo_frame` an equal share of the stereo frame's), ``'operator'`` and
-    ``'deconvolution'`` (data weights, trust and alpha included).
+    ``'deconvolution'`` (data weights, trust and alpha included; the further observations'
+    operators in ``'observations'``). ``observations``: the names of the further
+    observations the estimate used (``settings.observations``), e.g. ``('other-view',
+    'next', 'previous')``.
     """
 
     index: int
@@ -51,6 +63,7 @@ class FrameResult:
     alpha: float | None = None
     weight_steps: tuple = ()
     trust: np.ndarray | None = None
+    observations: tuple = ()
 
     @property
     def image(self) -> np.ndarray:
@@ -78,13 +91,17 @@ def solve(
     settings: DeblurSettings,
     *,
     weights: np.ndarray | None = None,
+    observations=(),
     progress: ProgressCallback | None = None,
 ) -> DeblurResult:
     """Eq. 6 by IRLS (:func:`~stereodeblur.deconv.irls.deblur_irls`) with ``terms``.
 
-    ``weights`` replaces ``terms.weights`` as the initial data weights; ``progress`` gets
-    ``Progress('IRLS', done, total)`` after every IRLS iteration.
+    ``weights`` replaces ``terms.weights`` as the initial data weights; ``observations``
+    (:class:`~.observations.NamedObservation`) are further data terms, weighted by their
+    residual; ``progress`` gets ``Progress('IRLS', done, total)`` after every IRLS iteration.
     """
+    from ..settings import OBSERVATION_ROBUST_SCALE
+
     return deblur_irls(
         blurred,
         operator,
@@ -94,6 +111,8 @@ def solve(
         num_cg=settings.num_cg,
         update_weights=terms.update,
         anchor=terms.anchor,
+        observations=[o.observation for o in observations],
+        robust_scale=OBSERVATION_ROBUST_SCALE if observations else None,
         progress=progress,
     )
 
@@ -122,12 +141,16 @@ def deblur_view(
     progress: ProgressCallback | None = None,
     operator=None,
     other: OtherView | None = None,
+    terms: DataTerms | None = None,
+    observations: tuple[NamedObservation, ...] = (),
 ) -> FrameResult:
     """Deblur one view of ``window`` with its ``motion``: operator, data terms, solve.
 
     ``timings``: seconds of the stages before (the motion's), kept in the result's.
     ``operator``: the view's :class:`~.operator.ViewOperator`, if already built;
-    ``other``: the other view, which ``alpha='cross-view'`` predicts.
+    ``other``: the other view, which ``alpha='cross-view'`` predicts; ``terms``: the view's
+    :class:`~.weights.DataTerms`, if already computed; ``observations``: further data terms
+    (:func:`~.observations.view_observations`).
     """
     view, timings = motion.view, dict(timings or {})
     check_motion(motion, window, view)
@@ -142,12 +165,27 @@ def deblur_view(
         if other is None:
             raise InputError("alpha='cross-view' needs the other view", parameter="alpha")
         terms, result = _cross_view_solve(
-            scene, window, view, blurred, operator, settings, other, weights, progress
+            scene,
+            window,
+            view,
+            blurred,
+            operator,
+            settings,
+            other,
+            weights,
+            observations,
+            progress,
         )
     else:
-        terms = data_terms(scene, window, view, operator, settings)
+        terms = terms or data_terms(scene, window, view, operator, settings)
         result = solve(
-            blurred, operator.operator, terms, settings, weights=weights, progress=progress
+            blurred,
+            operator.operator,
+            terms,
+            settings,
+            weights=weights,
+            observations=observations,
+            progress=progress,
         )
     timings["deconvolution"] = time.perf_counter() - start
     return FrameResult(
@@ -160,10 +198,13 @@ def deblur_view(
         terms.alpha,
         terms.steps,
         terms.trust,
+        tuple(o.name for o in observations),
     )
 
 
-def _cross_view_solve(scene, window, view, blurred, operator, settings, other, weights, progress):
+def _cross_view_solve(
+    scene, window, view, blurred, operator, settings, other, weights, observations, progress
+):
     """Solve at every alpha of :data:`CROSS_VIEW_ALPHAS`; keep the one chosen by
     predicting ``other`` (:mod:`.alpha`). Returns its data terms and result."""
     fixed = replace(settings, alpha=CROSS_VIEW_ALPHAS[0])
@@ -173,10 +214,24 @@ def _cross_view_solve(scene, window, view, blurred, operator, settings, other, w
     for alpha in CROSS_VIEW_ALPHAS:
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
-        result = solve(blurred, operator.operator, terms, fixed, weights=weights, progress=progress)
+        result = solve(
+            blurred,
+            operator.operator,
+            terms,
+            fixed,
+            weights=weights,
+            observations=observations,
+            progress=progress,
+        )
         errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
         runs.append((terms, result))
     return runs[choose(errors)]
+
+
+def needs_stereo_pass(settings: DeblurSettings) -> bool:
+    """Whether a view's deblurring computes the motion itself (:func:`deblur_frame` then
+    refuses a given motion): ``alpha='cross-view'`` or further observations."""
+    return settings.alpha == "cross-view" or bool(observation_kinds(settings))
 
 
 def deblur_frame(
@@ -197,12 +252,17 @@ def deblur_frame(
     """
     settings = settings or DeblurSettings()
     (view,) = check_views((view,))
-    if settings.alpha == "cross-view":  # both views' motion and operators
-        if motion is not None or weights is not None:
+    if needs_stereo_pass(settings):
+        if motion is not None or weights is not None:  # it needs both views' motion
+            setting = (
+                "alpha='cross-view'"
+                if settings.alpha == "cross-view"
+                else (f"observations={settings.observations!r}")
+            )
             raise InputError(
-                "alpha='cross-view' computes the motion of both views itself: "
-                "leave motion and weights unset",
-                parameter="alpha",
+                f"{setting} computes the motion of both views itself: "
+                "leave motion and weights unset (or use deblur_stereo_frame)",
+                parameter="alpha" if settings.alpha == "cross-view" else "observations",
             )
         stereo = deblur_stereo_frame(
             scene, index, views=(view,), settings=settings, progress=progress
@@ -241,7 +301,9 @@ def deblur_stereo_frame(
     settings = settings or DeblurSettings()
     views = check_views(views)
     cross_view = settings.alpha == "cross-view"
-    needed = VIEWS if cross_view else views  # alpha='cross-view' predicts the other view
+    kinds = observation_kinds(settings)
+    # alpha='cross-view' predicts the other view; 'other-view' observes it
+    needed = VIEWS if cross_view or "other-view" in kinds else views
     timings = {}
     start = time.perf_counter()
     check_gt(scene, index, settings, needed)
@@ -259,19 +321,27 @@ def deblur_stereo_frame(
     )
     timings["motion"] = time.perf_counter() - start
     share = {"motion": sum(timings.values()) / len(views)}
-    operators, seconds, others = {}, {}, {}
-    if cross_view:  # both operators first: each view's choice blurs with the other's
-        for view in VIEWS:
+    operators, seconds, others, terms = {}, {}, {}, {}
+    if cross_view or kinds:  # every operator first: the views use each other's
+        for view in needed:
             start = time.perf_counter()
             report(progress, f"frame {index} {view}: blur operator ({settings.kernels})")
             operators[view] = build_view_operator(window, motion.views[view], settings)
             seconds[view] = {"operator": time.perf_counter() - start}
+    if cross_view:
         for view, other in zip(VIEWS, VIEWS[::-1], strict=True):
             others[view] = other_view(
                 operators[other], motion.views[other], window.blurred(other), other
             )
+    if "other-view" in kinds:  # each view's data weights weigh it as the other's observation
+        terms = {v: data_terms(scene, window, v, operators[v], settings) for v in needed}
     frames = {}
     for view in views:
+        start = time.perf_counter()
+        weights = {v: t.weights for v, t in terms.items()}
+        observations = view_observations(window, view, motion.views, operators, weights, settings)
+        if kinds:
+            seconds[view]["observations"] = time.perf_counter() - start
         frames[view] = deblur_view(
             scene,
             window,
@@ -281,5 +351,7 @@ def deblur_stereo_frame(
             progress=prefixed(progress, f"frame {index} {view}: "),
             operator=operators.get(view),
             other=others.get(view),
+            terms=None if cross_view else terms.get(view),
+            observations=tuple(observations),
         )
     return StereoFrameResult(index, frames, motion, timings)

@@ -61,6 +61,15 @@ def uses_boundary_flow(settings: DeblurSettings) -> bool:
     return settings.boundary_weights in TRUST_HANDLINGS and settings.kernels == "homography"
 
 
+def observation_kinds(settings: DeblurSettings) -> tuple[str, ...]:
+    """The further observations ``settings.observations`` asks for: ``'other-view'``,
+    ``'neighbours'``; none without a scene flow (``motion_source='initial-flow'``)."""
+    if settings.motion_source == "initial-flow":
+        return ()
+    kinds = {"single": (), "all": ("other-view", "neighbours")}
+    return kinds.get(settings.observations, (settings.observations,))
+
+
 def uses_dense_flow(settings: DeblurSettings) -> bool:
     """Whether a run with ``settings`` computes the views' dense optical flow."""
     return settings.motion_source == "initial-flow" or (
@@ -129,7 +138,9 @@ def frames_needed(
         needed += [(v, i) for i in (index, neighbour) for v in VIEWS]
     elif source == "gt":
         needed.append(("left", index))  # the superpixels are cut on the left frame
-    if (motion and uses_dense_flow(settings)) or settings.boundary_weights in TRUST_HANDLINGS:
+    sides_read = settings.boundary_weights in TRUST_HANDLINGS
+    sides_read |= "neighbours" in observation_kinds(settings)  # observations of the view
+    if (motion and uses_dense_flow(settings)) or sides_read:
         sides = (neighbour,) if other is None else (neighbour, other)
         needed += [(view, i) for view in views for i in sides]
     return list(dict.fromkeys(needed))

@@ -1,0 +1,145 @@
+"""Further observations of a view: the other view and the neighbouring frames (issue 13)."""
+
+import numpy as np
+import pytest
+
+from stereodeblur.blur.operator import SparseBlur, dot_test
+from stereodeblur.errors import InputError
+from stereodeblur.io.scene import open_scene
+from stereodeblur.pipeline import DeblurSettings, deblur_frame, deblur_stereo_frame
+from stereodeblur.pipeline.frame import build_view_operator
+from stereodeblur.pipeline.motion import stereo_motion
+from stereodeblur.pipeline.observations import compose, view_observations, warp_operator
+from stereodeblur.pipeline.weights import data_terms
+from stereodeblur.pipeline.window import read_window
+from stereodeblur.synth.objects import make_object_scene
+from stereodeblur.synth.planar import write_rendered_scene
+
+FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8}
+
+
+def _render(tmp_path_factory, size):
+    rendered = make_object_scene("squares", size=size, num_samples=16)
+    return open_scene(write_rendered_scene(rendered, tmp_path_factory.mktemp("s") / "squares"))
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    return _render(tmp_path_factory, (64, 48))
+
+
+@pytest.fixture(scope="module")
+def larger(tmp_path_factory):
+    """At 64x48 the bilinear warp's interpolation error is as large as the blur model's."""
+    return _render(tmp_path_factory, (128, 96))
+
+
+def _random_blur(shape, seed):
+    rng = np.random.default_rng(seed)
+    n = shape[0] * shape[1]
+    rows = np.repeat(np.arange(n), 3)
+    cols = (rows + rng.integers(-5, 6, rows.size)) % n
+    matrix = np.zeros((n, n), np.float32)
+    np.add.at(matrix, (rows, cols), rng.random(rows.size).astype(np.float32))
+    import scipy.sparse as sp
+
+    return SparseBlur(sp.csr_matrix(matrix), shape)
+
+
+def test_the_composed_operator_is_the_blur_of_the_warp_and_passes_the_dot_test():
+    shape = (12, 10)
+    rng = np.random.default_rng(1)
+    positions = np.stack(
+        [rng.uniform(-2, 11, shape), rng.uniform(-2, 13, shape)], axis=-1
+    )  # some outside: clamped
+    warp = warp_operator(positions, shape)
+    blur = _random_blur(shape, 2)
+    both = compose(blur, warp)
+    image = rng.random(shape + (3,)).astype(np.float32)
+    np.testing.assert_allclose(
+        both.forward(image), blur.forward(warp.forward(image)), rtol=1e-5, atol=1e-6
+    )
+    assert dot_test(warp, shape) < 1e-5
+    assert dot_test(both, shape + (3,)) < 1e-5
+    # a whole-pixel shift samples exactly
+    y, x = np.mgrid[0:12, 0:10]
+    shifted = warp_operator(np.stack([x + 2.0, y + 0.0], axis=-1), shape)
+    np.testing.assert_array_equal(shifted.forward(image)[:, :8], image[:, 2:])
+
+
+def _observations(scene, settings, index=1):
+    views = ("left", "right")
+    window = read_window(scene, index, views, settings)
+    motion = stereo_motion(scene, window, views, settings)
+    operators = {v: build_view_operator(window, motion.views[v], settings) for v in views}
+    terms = {v: data_terms(scene, window, v, operators[v], settings) for v in views}
+    weights = {v: t.weights for v, t in terms.items()}
+    found = view_observations(window, "left", motion.views, operators, weights, settings)
+    return window, operators, terms, {o.name: o.observation for o in found}
+
+
+def _weighted_rms(operator, image, blurred, weights):
+    residual = operator.forward(image) - blurred
+    w2 = (weights**2)[..., None]
+    return float(np.sqrt(np.sum(w2 * residual**2) / (3 * np.sum(weights**2))))
+
+
+def test_with_the_true_motion_each_observation_explains_its_blurred_frame(larger):
+    scene = larger
+    settings = DeblurSettings(**FAST, motion_source="gt", observations="all")
+    window, operators, terms, found = _observations(scene, settings)
+    assert sorted(found) == ["next", "other-view", "previous"]
+    sharp = scene.read_gt_sharp("left", 1)
+    own = _weighted_rms(
+        operators["left"].operator, sharp, window.blurred("left"), terms["left"].weights
+    )
+    for name, observation in found.items():
+        assert observation.weights.mean() > 0.5, name  # most pixels are seen
+        rms = _weighted_rms(observation.operator, sharp, observation.blurred, observation.weights)
+        # The sharp frame of the other view / frame explains it no worse than it does its own.
+        assert rms < max(2 * own, 0.02), (name, rms, own)
+        # Not by chance: the blurred frame of this view explains it much worse.
+        other = _weighted_rms(
+            observation.operator, sharp, window.blurred("left"), observation.weights
+        )
+        assert other > 3 * rms, (name, rms, other)
+
+
+def test_the_first_and_the_last_frame_have_one_temporal_neighbour(scene):
+    settings = DeblurSettings(**FAST, motion_source="gt", observations="neighbours")
+    assert sorted(_observations(scene, settings, index=0)[3]) == ["next"]
+    last = scene.num_frames - 1
+    assert sorted(_observations(scene, settings, index=last)[3]) == ["previous"]
+
+
+def test_the_stereo_frame_uses_the_observations_and_single_is_todays(scene):
+    base = DeblurSettings(**FAST, motion_source="gt", observations="single")
+    single = deblur_stereo_frame(scene, 1, settings=base)
+    assert single.frames["left"].observations == ()
+    settings = DeblurSettings(**FAST, motion_source="gt", observations="all")
+    result = deblur_stereo_frame(scene, 1, settings=settings)
+    for view in ("left", "right"):
+        frame = result.frames[view]
+        assert frame.observations == ("other-view", "next", "previous")
+        assert "observations" in frame.timings
+        assert not np.array_equal(frame.result.image, single.frames[view].result.image)
+    # one view alone is the stereo frame's view
+    left = deblur_frame(scene, 1, view="left", settings=settings)
+    np.testing.assert_array_equal(left.result.image, result.frames["left"].result.image)
+
+
+def test_without_a_scene_flow_each_frame_has_its_single_observation(scene):
+    settings = DeblurSettings(
+        **FAST, motion_source="initial-flow", kernels="displacement", observations="all"
+    )
+    assert deblur_frame(scene, 1, settings=settings).observations == ()
+
+
+def test_given_motion_is_refused_and_bad_values_are_named(scene):
+    settings = DeblurSettings(**FAST, motion_source="gt", observations="other-view")
+    single = DeblurSettings(**FAST, motion_source="gt", observations="single")
+    motion = deblur_frame(scene, 1, settings=single).motion
+    with pytest.raises(InputError, match="observations='other-view'"):
+        deblur_frame(scene, 1, settings=settings, motion=motion)
+    with pytest.raises(InputError, match="observations must be one of"):
+        DeblurSettings(observations="both")
