@@ -5,7 +5,7 @@ Run from the repository root::
     python benchmarks/bench_stereo_frame.py                  # spheres, 640x480, median of 3
     python benchmarks/bench_stereo_frame.py --scene squares --repeats 5 --json out.json
     python benchmarks/bench_stereo_frame.py --alpha cross-view   # a setting other than the default
-    python benchmarks/bench_stereo_frame.py --observations single
+    python benchmarks/bench_stereo_frame.py --observations all --irls 6 --cg 10
 
 An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. A
 warm-up process on a 64x48 rendering of the same scene compiles the numba kernels into
@@ -50,7 +50,7 @@ def render(work: Path, name: str, size: tuple[int, int]) -> Path:
 
 def child(scene_path: str, output: str, options: dict) -> None:
     """One stereo frame in this process (``options``: settings instead of the default,
-    ``alpha`` and ``observations`` as on the command line); prints the stage timings as JSON."""
+    ``alpha`` as on the command line); prints the stage timings as JSON."""
     start = time.perf_counter()
     from stereodeblur import pipeline
     from stereodeblur.io.scene import SceneWriter, open_scene
@@ -83,7 +83,7 @@ def process(scene: Path, output: Path, options: dict) -> tuple[float, dict]:
     """Wall seconds and the stage timings of one child process."""
     command = [sys.executable, __file__, "--child", str(scene), str(output)]
     for name, value in options.items():
-        command += [f"--{name}", value]
+        command += [f"--{name}", str(value)]
     start = time.perf_counter()
     done = subprocess.run(command, check=True, capture_output=True, text=True)
     return time.perf_counter() - start, json.loads(done.stdout.strip().splitlines()[-1])
@@ -119,11 +119,13 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="also write the result here")
     parser.add_argument("--alpha", help="--alpha of the run (default: the settings' default)")
     parser.add_argument("--observations", help="--observations of the run (default: the default)")
+    parser.add_argument("--num_irls", "--irls", dest="num_irls", type=int, help="IRLS iterations")
+    parser.add_argument("--num_cg", "--cg", dest="num_cg", type=int, help="CG steps per iteration")
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     options = {
         name: getattr(args, name)
-        for name in ("alpha", "observations")
+        for name in ("alpha", "observations", "num_irls", "num_cg")
         if getattr(args, name) is not None
     }
     if args.child:

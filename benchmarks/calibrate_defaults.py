@@ -69,9 +69,10 @@ CANDIDATES = {
     "cross-view": {"alpha": "cross-view"},
     "adaptive": {"boundary_weights": "adaptive"},
     "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
+    "observations": {"observations": "all"},
 }
 """Candidate defaults (settings overrides), checked like the default; ``adaptive`` is the
-default before 2026-11-26."""
+default before 2026-11-26, ``observations`` issue 13's further observations."""
 
 
 @dataclass(frozen=True)

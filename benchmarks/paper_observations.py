@@ -99,6 +99,11 @@ def main(argv=None) -> int:
     return 0
 
 
+def _cell(psnrs, mses) -> str:
+    mse = np.mean(mses)
+    return f"{np.mean(psnrs):.2f} / " + ("–" if np.isnan(mse) else f"{1000 * mse:.2f}")
+
+
 def report(rows, chosen, minutes, argv) -> list[str]:
     head = " | ".join(c.title for c in chosen)
     seconds = {
@@ -115,9 +120,7 @@ def report(rows, chosen, minutes, argv) -> list[str]:
         "|---|" + "---|" * len(chosen),
     ]
     for name, values in rows.items():
-        cells = [
-            f"{values[c.key]['psnr']:.2f} / {1000 * values[c.key]['mixed_mse']:.2f}" for c in chosen
-        ]
+        cells = [_cell([values[c.key]["psnr"]], [values[c.key]["mixed_mse"]]) for c in chosen]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += ["", f"| mean | {head} |", "|---|" + "---|" * len(chosen)]
     for group in ("object", "planar"):
@@ -130,8 +133,10 @@ def report(rows, chosen, minutes, argv) -> list[str]:
             ]
             if names:
                 cells = [
-                    f"{np.mean([rows[n][c.key]['psnr'] for n in names]):.2f} / "
-                    f"{1000 * np.mean([rows[n][c.key]['mixed_mse'] for n in names]):.2f}"
+                    _cell(
+                        [rows[n][c.key]["psnr"] for n in names],
+                        [rows[n][c.key]["mixed_mse"] for n in names],
+                    )
                     for c in chosen
                 ]
                 label = f"{group}, {'noisy' if noisy else 'noiseless'} ({len(names)})"

@@ -75,12 +75,14 @@ def table_masked(rows) -> str:
 def table_metric(rows, metric: str) -> str:
     """Table 3 (``metric='psnr'``), Table 4 (``'ssim'``) or the gt/mixed error
     (``'mixed_mse'``, times 1000, lower is better): all columns, no mask."""
-    digits = 2 if metric == "psnr" else 3
+    digits = 3 if metric == "ssim" else 2
     scale, pick = (1000.0, min) if metric == "mixed_mse" else (1.0, max)
     titles = " | ".join(c.title for c in COLUMNS)
     head = f"| scene | blurred | {titles} |\n|---|" + "---:|" * (len(COLUMNS) + 1)
     out = []
     for label, group in _groups(rows):
+        if all(math.isnan(_value(r, c.key, metric)) for r in group for c in COLUMNS):
+            continue  # e.g. no gt/mixed pixels on the planar scenes
         lines = [f"**{label}**", "", head]
         for r in group + ["mean"]:
             rr = group if r == "mean" else [r]

@@ -98,7 +98,8 @@ def solve(
 
     ``weights`` replaces ``terms.weights`` as the initial data weights; ``observations``
     (:class:`~.observations.NamedObservation`) are further data terms, weighted by their
-    residual; ``progress`` gets ``Progress('IRLS', done, total)`` after every IRLS iteration.
+    residual and summed with the view's own at the same alpha; ``progress`` gets
+    ``Progress('IRLS', done, total)`` after every IRLS iteration.
     """
     from ..settings import OBSERVATION_ROBUST_SCALE
 
@@ -254,15 +255,11 @@ def deblur_frame(
     (view,) = check_views((view,))
     if needs_stereo_pass(settings):
         if motion is not None or weights is not None:  # it needs both views' motion
-            setting = (
-                "alpha='cross-view'"
-                if settings.alpha == "cross-view"
-                else (f"observations={settings.observations!r}")
-            )
+            name = "alpha" if settings.alpha == "cross-view" else "observations"
             raise InputError(
-                f"{setting} computes the motion of both views itself: "
+                f"{name}={getattr(settings, name)!r} computes the motion of both views itself: "
                 "leave motion and weights unset (or use deblur_stereo_frame)",
-                parameter="alpha" if settings.alpha == "cross-view" else "observations",
+                parameter=name,
             )
         stereo = deblur_stereo_frame(
             scene, index, views=(view,), settings=settings, progress=progress
@@ -335,10 +332,10 @@ def deblur_stereo_frame(
             )
     if "other-view" in kinds:  # each view's data weights weigh it as the other's observation
         terms = {v: data_terms(scene, window, v, operators[v], settings) for v in needed}
+    weights = {v: t.weights for v, t in terms.items()}
     frames = {}
     for view in views:
         start = time.perf_counter()
-        weights = {v: t.weights for v, t in terms.items()}
         observations = view_observations(window, view, motion.views, operators, weights, settings)
         if kinds:
             seconds[view]["observations"] = time.perf_counter() - start
