@@ -33,7 +33,8 @@ def _row(runner, name, default, paper, best):
 
 def test_columns_cover_the_protocol(runner):
     keys = [(c.motion_source, c.key) for c in runner.columns_for(("gt", "sceneflow"))]
-    assert len(keys) == 2 * (5 + 2 * len(runner.ALPHAS)) + 1
+    # default, paper, the candidates, the default's and adaptive's alpha grids; the monocular
+    assert len(keys) == 2 * (2 + len(runner.CANDIDATES) + 2 * len(runner.ALPHAS)) + 1
     assert len(set(keys)) == len(keys)
     assert ("initial-flow", "monocular") in keys and ("sceneflow", "paper") in keys
     columns = {c.key: c.settings() for c in runner.columns_for(("gt",))}
@@ -45,6 +46,9 @@ def test_columns_cover_the_protocol(runner):
     assert runner.grid_prefix("cross-view") == ""
     assert columns["adaptive-alpha=0.001"].alpha == 1e-3
     assert columns["adaptive-alpha=0.001"].boundary_weights == "adaptive"
+    assert columns["observations"].observations == "all"
+    (mono,) = [c for c in runner.columns_for(("sceneflow",)) if c.key == "monocular"]
+    assert mono.settings().boundary_weights == "adaptive"  # its strongest handling
     assert ("initial-flow", "monocular") not in [
         (c.motion_source, c.key) for c in runner.columns_for(("gt",))
     ]
