@@ -294,7 +294,8 @@ class _NormalEquations:
         return _adjoint(self.operator, image3d, self.shape)
 
     def set_weights(self, w) -> None:
-        """Data weights ``w``: ``W^2``, the right-hand side ``A^T W^2 B (+ beta B)``, its norm."""
+        """Data weights ``w``: ``W^2``, the right-hand side ``A^T W^2 B (+ sum_k A_k^T W_k^2 B_k
+        + beta B)`` with the observations' current weights, and its norm."""
         self.w = w
         self.squared = np.ascontiguousarray(w * w, dtype=np.float32)
         self.unit_weights = bool(np.all(self.squared == 1))
@@ -309,7 +310,8 @@ class _NormalEquations:
         self.rhs_norm = np.where(norm > 0, norm, 1.0)
 
     def apply(self, p3, row_dots):
-        """``(A^T W^2 A + D^T rho D + beta) p``; the row sums of ``p * (that)`` to ``row_dots``."""
+        """``(A^T W^2 A + sum_k A_k^T W_k^2 A_k + D^T rho D + beta) p``; the row sums of
+        ``p * (that)`` to ``row_dots``."""
         q = _gram(self.operator, p3, self.squared, self.unit_weights, self.shape)
         q = _owned(_as_3d(np.asarray(q)), p3)
         for extra in self.extras:
