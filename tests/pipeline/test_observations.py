@@ -143,4 +143,3 @@ def test_given_motion_is_refused_and_bad_values_are_named(scene):
         deblur_frame(scene, 1, settings=settings, motion=motion)
     with pytest.raises(InputError, match="observations must be one of"):
         DeblurSettings(observations="both")
-
