@@ -175,21 +175,12 @@ def run_column(scene, column: Column, motion, truth) -> dict:
     import warnings
 
     from stereodeblur.evaluation.metrics import psnr, ssim
-    from stereodeblur.pipeline import deblur_frame, deblur_stereo_frame
-    from stereodeblur.pipeline.frame import needs_stereo_pass
+    from stereodeblur.evaluation.paper_bench import deblur_with_motion
 
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        settings = column.settings()
-        if needs_stereo_pass(settings):  # both views' motion, from the cached scene flow
-            sf = motion.sceneflow if settings.motion_source == "sceneflow" else None
-            stereo = deblur_stereo_frame(
-                scene, FRAME, views=("left",), settings=settings, sceneflow=sf
-            )
-            result = stereo.frames["left"]
-        else:
-            result = deblur_frame(scene, FRAME, view="left", settings=settings, motion=motion)
+        result = deblur_with_motion(scene, FRAME, column.settings(), motion)
     seconds = time.perf_counter() - start
     border = border_of(truth.shape[1])
     return {

@@ -71,18 +71,9 @@ def main(argv=None) -> int:
         cells = [f"{values[c.key]['psnr']:.2f} ({values[c.key]['alpha']:.2g})" for c in columns]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += ["", f"| mean | {head} |", "|---|" + "---|" * len(columns)]
-    for group in ("object", "planar"):
-        for noisy in (False, True):
-            chosen = [
-                n
-                for n in rows
-                if paper_bench.scene_kind(n) == group
-                and n.endswith(paper_bench.NOISY_SUFFIX) == noisy
-            ]
-            if chosen:
-                means = [np.mean([rows[n][c.key]["psnr"] for n in chosen]) for c in columns]
-                label = f"{group}, {'noisy' if noisy else 'noiseless'} ({len(chosen)})"
-                lines.append(f"| {label} | " + " | ".join(f"{m:.2f}" for m in means) + " |")
+    for label, chosen in paper_bench.scene_groups(rows):
+        means = [np.mean([rows[n][c.key]["psnr"] for n in chosen]) for c in columns]
+        lines.append(f"| {label} | " + " | ".join(f"{m:.2f}" for m in means) + " |")
     text = "\n".join(lines) + "\n"
     print(text)
     if args.output:

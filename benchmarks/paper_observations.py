@@ -123,24 +123,11 @@ def report(rows, chosen, minutes, argv) -> list[str]:
         cells = [_cell([values[c.key]["psnr"]], [values[c.key]["mixed_mse"]]) for c in chosen]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += ["", f"| mean | {head} |", "|---|" + "---|" * len(chosen)]
-    for group in ("object", "planar"):
-        for noisy in (False, True):
-            names = [
-                n
-                for n in rows
-                if paper_bench.scene_kind(n) == group
-                and n.endswith(paper_bench.NOISY_SUFFIX) == noisy
-            ]
-            if names:
-                cells = [
-                    _cell(
-                        [rows[n][c.key]["psnr"] for n in names],
-                        [rows[n][c.key]["mixed_mse"] for n in names],
-                    )
-                    for c in chosen
-                ]
-                label = f"{group}, {'noisy' if noisy else 'noiseless'} ({len(names)})"
-                lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    for label, names in paper_bench.scene_groups(rows):
+        psnrs = [[rows[n][c.key]["psnr"] for n in names] for c in chosen]
+        mses = [[rows[n][c.key]["mixed_mse"] for n in names] for c in chosen]
+        cells = [_cell(p, m) for p, m in zip(psnrs, mses, strict=True)]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
     cells = [f"{seconds[c.key]:.1f}" for c in chosen]
     lines.append("| median seconds per frame (one view, 2 cores) | " + " | ".join(cells) + " |")
     return lines

@@ -365,7 +365,9 @@ class _NormalEquations:
         return IrlsIterate(iteration, data + prior, data, prior, mean, relative)
 
 
-def _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_cg) -> None:
+def _check_arguments(
+    blurred, operator, alpha, exponent, epsilon, num_irls, num_cg, robust_scale=None
+) -> None:
     """Raise an :class:`InputError` naming the first bad argument of :func:`deblur_irls`."""
     if blurred.ndim not in (2, 3) or min(blurred.shape[:2], default=0) < 1:
         raise InputError(f"blurred must have shape (H, W) or (H, W, C), got {blurred.shape}")
@@ -385,6 +387,8 @@ def _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_
     for name, value in (("num_irls", num_irls), ("num_cg", num_cg)):
         if int(value) != value or value < 0:
             raise InputError(f"{name} must be a non-negative integer, got {value!r}")
+    if robust_scale is not None and not (np.isfinite(robust_scale) and robust_scale > 0):
+        raise InputError(f"robust_scale must be a positive number, got {robust_scale!r}")
 
 
 def deblur_irls(
@@ -477,9 +481,7 @@ def deblur_irls(
         The estimate is float32 and not clipped.
     """
     blurred = np.asarray(blurred)
-    _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_cg)
-    if robust_scale is not None and not (np.isfinite(robust_scale) and robust_scale > 0):
-        raise InputError(f"robust_scale must be a positive number, got {robust_scale!r}")
+    _check_arguments(blurred, operator, alpha, exponent, epsilon, num_irls, num_cg, robust_scale)
     with threads_for(blurred.size):
         return _deblur(
             blurred,

@@ -212,22 +212,42 @@ def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) 
     }
 
 
-def run_column(scene, column: Column, base_settings: DeblurSettings, motion, truth: dict) -> tuple:
-    """Deblur frame 1 with ``column``; returns ``(ColumnResult, image)``."""
+def deblur_with_motion(scene, index: int, settings: DeblurSettings, motion):
+    """Frame ``index`` of the left view deblurred with its known ``motion``; where
+    ``settings`` need both views' (:func:`~stereodeblur.pipeline.frame.needs_stereo_pass`),
+    by the stereo pass from the motion's scene flow."""
     from ..pipeline import deblur_frame, deblur_stereo_frame
     from ..pipeline.frame import needs_stereo_pass
+
+    if not needs_stereo_pass(settings):
+        return deblur_frame(scene, index, settings=settings, motion=motion)
+    sf = motion.sceneflow if settings.motion_source == "sceneflow" else None
+    stereo = deblur_stereo_frame(scene, index, views=("left",), settings=settings, sceneflow=sf)
+    return stereo.frames["left"]
+
+
+def scene_groups(names) -> list[tuple[str, list[str]]]:
+    """``(label, names)`` of the scene groups that have scenes: object and planar scenes,
+    noiseless and noisy, e.g. ``('object, noisy (5)', [...])``."""
+    out = []
+    for kind in ("object", "planar"):
+        for noisy in (False, True):
+            chosen = [
+                n for n in names if scene_kind(n) == kind and n.endswith(NOISY_SUFFIX) == noisy
+            ]
+            if chosen:
+                label = f"{kind}, {'noisy' if noisy else 'noiseless'} ({len(chosen)})"
+                out.append((label, chosen))
+    return out
+
+
+def run_column(scene, column: Column, base_settings: DeblurSettings, motion, truth: dict) -> tuple:
+    """Deblur frame 1 with ``column``; returns ``(ColumnResult, image)``."""
     from .metrics import border_for, disparity_error, endpoint_error, masked_mse, psnr, ssim
 
     settings = column.settings(base_settings)
     start = time.perf_counter()
-    if needs_stereo_pass(settings):  # both views' motion, from the cached scene flow
-        sf = motion.sceneflow if settings.motion_source == "sceneflow" else None
-        stereo, _ = _quiet(
-            deblur_stereo_frame, scene, FRAME, views=("left",), settings=settings, sceneflow=sf
-        )
-        result = stereo.frames["left"]
-    else:
-        result, _ = _quiet(deblur_frame, scene, FRAME, settings=settings, motion=motion)
+    result, _ = _quiet(deblur_with_motion, scene, FRAME, settings, motion)
     seconds = time.perf_counter() - start
     sharp = truth["sharp"]
     border = border_for(sharp.shape[1])

@@ -95,6 +95,22 @@ def invert_known_flow(flow: np.ndarray) -> np.ndarray:
     return inverse
 
 
+def splat_order(nearness: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Flat indices of the ``ok`` pixels, the farthest (lowest ``nearness``) first: written
+    in this order, the nearest surface wins (z-buffered splatting)."""
+    order = np.argsort(np.where(ok, nearness, -np.inf).ravel(), kind="stable")
+    return order[ok.ravel()[order]]
+
+
+def fill_from_nearest(labels: np.ndarray, holes: np.ndarray) -> None:
+    """Give each hole the label of the nearest pixel that is none (all holes: label 0)."""
+    if holes.all():
+        labels[:] = 0
+    elif holes.any():
+        _, (iy, ix) = ndimage.distance_transform_edt(holes, return_indices=True)
+        labels[holes] = labels[iy[holes], ix[holes]]
+
+
 def to_right_view(sceneflow: SceneFlow) -> SceneFlow:
     """Transfer a left-view scene flow to the right view (labels by z-buffered warping).
 
@@ -108,19 +124,15 @@ def to_right_view(sceneflow: SceneFlow) -> SceneFlow:
     y, x = np.mgrid[0:H, 0:W]
     xr = np.round(x - d).astype(int)
     ok = (xr >= 0) & (xr < W) & np.isfinite(d)
-    order = np.argsort(np.where(ok, d, -np.inf).ravel(), kind="stable")  # far first, near last
-    order = order[ok.ravel()[order]]
+    order = splat_order(d, ok)
     labels = np.full((H, W), -1, dtype=np.int32)
     disp = np.full((H, W), np.inf)
     labels[y.ravel()[order], xr.ravel()[order]] = sceneflow.labels.ravel()[order]
     disp[y.ravel()[order], xr.ravel()[order]] = d.ravel()[order]
     holes = labels < 0
-    if holes.all():
-        labels[:] = 0
-    elif holes.any():
-        # Fill each hole from the nearest pixel to its left or right, whichever is farther.
-        _, (iy, ix) = ndimage.distance_transform_edt(holes, return_indices=True)
-        labels[holes] = labels[iy[holes], ix[holes]]
+    fill_from_nearest(labels, holes)
+    if holes.any() and not holes.all():
+        # Then from the pixel to its left or right instead, where that one is farther.
         for step in (1, -1):
             src = np.clip(x + step, 0, W - 1)
             cand = ~holes[y, src] & holes & (disp[y, src] < disp)

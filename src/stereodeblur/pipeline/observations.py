@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
-from scipy import ndimage
 
 from ..blur.operator import SparseBlur
 from ..blur.trajectories import homography_positions
@@ -26,7 +25,7 @@ from ..deconv.weights import hidden_weights
 from ..geometry.plane import move_plane
 from ..geometry.rigid import se3_exp
 from ..sceneflow.model import SceneFlow
-from .motion import FrameMotion
+from .motion import FrameMotion, fill_from_nearest, splat_order
 from .operator import ViewOperator, view_operator
 from .window import FrameWindow, observation_kinds
 
@@ -104,12 +103,13 @@ def other_view_observation(
     theirs = other.motion.sceneflow
     H, W = theirs.shape
     y, x = np.mgrid[0:H, 0:W]
+    disparity = theirs.disparity()
     sign = 1.0 if theirs.view == "right" else -1.0  # a right pixel x sees the left x + d
-    source = x + sign * theirs.disparity()
+    source = x + sign * disparity
     positions = np.stack([source, y.astype(np.float64)], axis=-1)
     xi = np.clip(np.round(source).astype(int), 0, W - 1)
     seen = (source >= 0) & (source <= W - 1)
-    seen &= np.abs(own.disparity()[y, xi] - theirs.disparity()) < 1.0
+    seen &= np.abs(own.disparity()[y, xi] - disparity) < 1.0
     blur = other.operator
     return Observation(
         compose(blur, warp_operator(positions, (H, W))),
@@ -124,16 +124,11 @@ def _splat_labels(sf: SceneFlow, points: np.ndarray) -> tuple[np.ndarray, np.nda
     q = sf.camera.project(points, sf.view)
     xr, yr = np.round(q[..., 0]).astype(int), np.round(q[..., 1]).astype(int)
     ok = (xr >= 0) & (xr < W) & (yr >= 0) & (yr < H) & (points[..., 2] > 0)
-    order = np.argsort(np.where(ok, -points[..., 2], -np.inf).ravel(), kind="stable")
-    order = order[ok.ravel()[order]]  # far first, near last
+    order = splat_order(-points[..., 2], ok)
     labels = np.full((H, W), -1, np.int32)
     labels[yr.ravel()[order], xr.ravel()[order]] = sf.labels.ravel()[order]
     holes = labels < 0
-    if holes.all():
-        labels[:] = 0
-    elif holes.any():
-        _, (iy, ix) = ndimage.distance_transform_edt(holes, return_indices=True)
-        labels[holes] = labels[iy[holes], ix[holes]]
+    fill_from_nearest(labels, holes)
     return labels, holes
 
 
