@@ -64,6 +64,9 @@ MOTIONS = ("gt", "sceneflow")
 KINDS = ("family", "street")
 WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
 """dB limits of the checks (issue 12)."""
+OVER_MONOCULAR = 0.5
+"""dB the estimated-motion default must beat the monocular path by on the semi-real
+scenes, on average and on every one (issue 13)."""
 FEATURES_VERSION = " features 1"
 CANDIDATES = {
     "cross-view": {"alpha": "cross-view"},
@@ -377,6 +380,30 @@ def checks(rows, motions, key: str = "default") -> list[tuple[str, bool, str]]:
     return out
 
 
+def monocular_checks(rows, keys) -> list[tuple[str, bool, str]]:
+    """Issue 13's semi-real check of each column of ``keys`` (estimated motion): at least
+    :data:`OVER_MONOCULAR` dB over the monocular path on average and on every street scene."""
+    street = [r for r in rows if r["kind"] == "street" and "initial-flow/monocular" in r["columns"]]
+    if not street:
+        return []
+    out = []
+    for key in keys:
+        gains = [
+            r["columns"][f"sceneflow/{key}"]["psnr"]
+            - r["columns"]["initial-flow/monocular"]["psnr"]
+            for r in street
+        ]
+        worst = min(range(len(gains)), key=gains.__getitem__)
+        mean = sum(gains) / len(gains)
+        figures = f"mean {mean:+.2f} dB, worst {gains[worst]:+.2f} dB ({street[worst]['scene']})"
+        name = f"sceneflow: {key} at least {OVER_MONOCULAR} dB over the monocular path on the "
+        ok = mean >= OVER_MONOCULAR and gains[worst] >= OVER_MONOCULAR
+        out.append(
+            (name + f"{len(street)} semi-real scenes, on average and on every one", ok, figures)
+        )
+    return out
+
+
 def _cell(entry: dict | None) -> str:
     return "–" if entry is None else f"{entry['psnr']:.2f} / {entry['ssim']:.3f}"
 
@@ -466,6 +493,11 @@ def report(rows, args, seconds: float) -> str:
         "",
     ]
     lines += [f"- {'PASS' if ok else 'FAIL'}: {name} ({figures})" for name, ok, figures in passed]
+    if "sceneflow" in motions:
+        semi_real = monocular_checks(rows, ["default", *CANDIDATES])
+        if semi_real:
+            lines += ["", "## Checks (issue 13): semi-real scenes against the monocular path", ""]
+            lines += [f"- {'PASS' if ok else 'FAIL'}: {n} ({f})" for n, ok, f in semi_real]
     lines += ["", "## Summary (PSNR, dB)", ""] + summary_table(rows, motions)
     lines += ["", "## Per scene (PSNR dB / SSIM)", ""]
     for row in rows:

@@ -100,3 +100,17 @@ def test_scene_lists_follow_the_split(runner):
     assert args.split == "train" and args.output.endswith("calibrate_defaults_train_320x240.md")
     with pytest.raises(SystemExit):
         runner.parse(["--kinds", "forest"])
+
+
+def test_monocular_check_needs_every_semi_real_scene(runner):
+    def row(name, kind, default, mono):
+        columns = {"sceneflow/default": {"psnr": default}, "initial-flow/monocular": {"psnr": mono}}
+        return {"scene": name, "kind": kind, "columns": columns}
+
+    rows = [row("street_0", "street", 31.0, 30.0), row("family_0", "family", 20.0, 30.0)]
+    ((name, ok, figures),) = runner.monocular_checks(rows, ["default"])
+    assert ok and "1 semi-real scenes" in name and "mean +1.00 dB" in figures  # family ignored
+    rows.append(row("street_1", "street", 30.2, 30.0))  # mean +0.60, but one at +0.20
+    ((_, ok, figures),) = runner.monocular_checks(rows, ["default"])
+    assert not ok and "worst +0.20 dB (street_1)" in figures
+    assert runner.monocular_checks(rows[1:2], ["default"]) == []
