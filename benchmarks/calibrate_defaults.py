@@ -20,7 +20,8 @@ estimated), the motion computed once per scene and source
 (:func:`~stereodeblur.pipeline.frame_motion`) and reused by every column:
 
 - ``default``: :class:`~stereodeblur.pipeline.DeblurSettings` defaults;
-- ``paper``: the paper's settings, ``alpha=0.001``, ``boundary_weights='none'``;
+- ``paper``: the paper's settings, ``alpha=0.001``, ``boundary_weights='none'``, 10 IRLS x
+  25 CG iterations;
 - the candidates of :data:`CANDIDATES` (``alpha='cross-view'`` computes the motion of both
   views itself), each checked like the default against the grid of its own boundary handling;
 - ``alpha=A`` for A in :data:`ALPHAS`, the default boundary handling, and ``HANDLING-alpha=A``
@@ -58,7 +59,7 @@ from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
-PAPER = {"alpha": 1e-3, "boundary_weights": "none"}
+PAPER = {"alpha": 1e-3, "boundary_weights": "none", "num_irls": 10, "num_cg": 25}
 FRAME = 1
 MOTIONS = ("gt", "sceneflow")
 KINDS = ("family", "street")
@@ -73,9 +74,12 @@ CANDIDATES = {
     "adaptive": {"boundary_weights": "adaptive"},
     "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
     "observations": {"observations": "all"},
+    "iterations-10x25": {"num_irls": 10, "num_cg": 25},
 }
 """Candidate defaults (settings overrides), checked like the default; ``adaptive`` is the
-default before 2026-11-26, ``observations`` issue 13's further observations."""
+default before 2026-11-26, ``observations`` issue 13's further observations,
+``iterations-10x25`` the paper's iteration counts (the default before 2026-11-26, stop 22;
+``benchmarks/study_iterations.py``)."""
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,8 @@ estimated scene flow by "ours" (gated boundaries, auto alpha) from the view's ow
 frame only, + the other view, + the neighbouring frames, and all three
 (``DeblurSettings.observations``), next to the monocular path with the same defaults and
 the initial optical flow at the paper's settings; and ours from the single observation and
-from all with 6 IRLS x 10 CG iterations instead of the paper's 10 x 25 (:data:`FEWER`).
+from all with the paper's 10 IRLS x 25 CG iterations (:data:`PAPER_COUNTS`) instead of the
+default counts.
 Writes PSNR and the mean squared error in the gt/mixed pixels per scene and the means per
 scene group to ``--output``.
 """
@@ -29,7 +30,7 @@ import numpy as np
 from stereodeblur.evaluation import paper_bench
 from stereodeblur.evaluation.paper_columns import COLUMNS
 from stereodeblur.io.outputs import atomic_write_text
-from stereodeblur.settings import OBSERVATIONS, DeblurSettings
+from stereodeblur.settings import OBSERVATIONS, PAPER_CG, PAPER_IRLS, DeblurSettings
 
 TITLES = {
     "single": "same view only",
@@ -39,8 +40,8 @@ TITLES = {
 }
 
 
-FEWER = (6, 10)
-"""``--irls 6 --cg 10``: the faster setting, measured beside the paper's 10 x 25."""
+PAPER_COUNTS = (PAPER_IRLS, PAPER_CG)
+"""``--irls 10 --cg 25``: the paper's counts (the default before stop 22), beside the default."""
 
 
 def columns():
@@ -53,10 +54,10 @@ def columns():
     return out
 
 
-def fewer_columns():
-    """Ours from the single observation and from all, with :data:`FEWER` iterations."""
+def paper_count_columns():
+    """Ours from the single observation and from all, with :data:`PAPER_COUNTS`."""
     ours = next(c for c in COLUMNS if c.key == "ours-full")
-    tag = "x".join(map(str, FEWER))
+    tag = "x".join(map(str, PAPER_COUNTS))
     return [
         replace(
             ours, key=f"ours-{name}-{tag}", title=f"ours, {TITLES[name]}, {tag}", observations=name
@@ -75,21 +76,21 @@ def main(argv=None) -> int:
     size = tuple(int(v) for v in args.size.lower().split("x"))
     folder = Path(args.work) / args.size
     names = args.scenes.split(",") if args.scenes else paper_bench.default_scenes()
-    chosen, fewer = columns(), fewer_columns()
+    chosen, paper = columns(), paper_count_columns()
     start = time.perf_counter()
     paper_bench.render_missing(folder / "scenes", names, size)
     rows = {}
     for name in names:
         root, cache = folder / "scenes" / name, folder / "cache" / name
         row = paper_bench.evaluate_scene(root, cache, chosen, DeblurSettings())
-        iterations = DeblurSettings(num_irls=FEWER[0], num_cg=FEWER[1])
+        iterations = DeblurSettings(num_irls=PAPER_COUNTS[0], num_cg=PAPER_COUNTS[1])
         rows[name] = (
-            row.columns | paper_bench.evaluate_scene(root, cache, fewer, iterations).columns
+            row.columns | paper_bench.evaluate_scene(root, cache, paper, iterations).columns
         )
         print(
-            name, " ".join(f"{rows[name][c.key]['psnr']:.2f}" for c in chosen + fewer), flush=True
+            name, " ".join(f"{rows[name][c.key]['psnr']:.2f}" for c in chosen + paper), flush=True
         )
-    chosen += fewer
+    chosen += paper
     minutes = (time.perf_counter() - start) / 60
     print("\n".join(report(rows, chosen, minutes, sys.argv[1:])))
     if args.output:

@@ -117,3 +117,17 @@ def test_unknown_scene_is_a_one_line_error(tmp_path, capsys):
     code = main(["bench", "paper", "--scenes", "teapot", "--work", str(tmp_path)])
     assert code == 2
     assert "unknown scene 'teapot'" in capsys.readouterr().err
+
+
+def test_the_paper_columns_keep_the_paper_iteration_counts():
+    from stereodeblur.settings import NUM_CG, NUM_IRLS, PAPER_CG, PAPER_IRLS, DeblurSettings
+
+    paper_keys = {c.key for c in COLUMNS[:5] + MASKED_COLUMNS}
+    for column in COLUMNS + MASKED_COLUMNS + (TRUE_MOTION, sweep_column(1e-3)):
+        settings = column.settings(DeblurSettings())
+        counts = (settings.num_irls, settings.num_cg)
+        expected = (PAPER_IRLS, PAPER_CG) if column.key in paper_keys else (NUM_IRLS, NUM_CG)
+        assert counts == expected, column.key
+        given = column.settings(DeblurSettings(num_irls=3, num_cg=7))  # --irls 3 --cg 7
+        assert (given.num_irls, given.num_cg) == (3, 7), column.key
+    assert [c.boundary_mask for c in MASKED_COLUMNS] == ["gt"] * 4

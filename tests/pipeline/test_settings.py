@@ -13,7 +13,7 @@ from stereodeblur.sceneflow.settings import SceneFlowSettings
 def test_defaults_are_the_module_constants():
     s = DeblurSettings()
     assert s.motion_source == "sceneflow" == defaults.DEFAULT_MOTION_SOURCE
-    assert (s.num_samples, s.num_irls, s.num_cg) == (70, 10, 25)
+    assert (s.num_samples, s.num_irls, s.num_cg) == (70, 4, 25)
     assert s.num_samples == defaults.NUM_SAMPLES and defaults.PAPER_ALPHA == 1e-3
     assert (s.kernels, s.alpha, s.boundary_weights) == ("homography", "auto", "gated")
     assert s.sceneflow == SceneFlowSettings()
