@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -29,8 +30,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import calibrate_defaults as protocol  # noqa: E402
 
 PAIRS = ((10, 25), (10, 10), (8, 15), (8, 25), (6, 25), (5, 25), (4, 25), (3, 25), (6, 10), (4, 10))
-"""``(num_irls, num_cg)``; the first is the paper's (and today's default)."""
+"""``(num_irls, num_cg)``; the first is the paper's (the default until stop 22)."""
 MONOCULAR_PAIRS = (PAIRS[0], (6, 25), (5, 25), (6, 10))
+"""The monocular path's pairs; the first is the paper's."""
 
 
 def pair_key(pair) -> str:
@@ -50,6 +52,7 @@ def columns(pairs=PAIRS, monocular_pairs=MONOCULAR_PAIRS) -> list[protocol.Colum
 
 
 def settings_of(column: protocol.Column):
+    """The column's settings with its counts (the protocol's monocular column has none)."""
     from dataclasses import replace
 
     return replace(column.settings(), **column.overrides)
@@ -92,7 +95,7 @@ def run_scene(task) -> dict:
         out[f"{column.motion_source}/{column.key}"] = data
     return {
         "scene": root.name,
-        "noise": json.loads((root / "gt/family.json").read_text())["noise"],
+        "noise": json.loads((root / "gt/family.json").read_text(encoding="utf-8"))["noise"],
         "columns": out,
     }
 
@@ -163,10 +166,14 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=40)
     parser.add_argument("--size", default="320x240")
-    parser.add_argument("--work", type=Path, default=Path("/tmp/calib/work"))
+    parser.add_argument(
+        "--work", type=Path, default=Path(tempfile.gettempdir()) / "stereodeblur_calibration"
+    )
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--pairs", default=None, help="IRLSxCG,... (default: PAIRS)")
-    parser.add_argument("--monocular-pairs", default=None, help="IRLSxCG,... (default: all)")
+    parser.add_argument(
+        "--monocular-pairs", default=None, help="IRLSxCG,... (default: MONOCULAR_PAIRS)"
+    )
     parser.add_argument("--output", type=Path, default=None)
     args = parser.parse_args(argv)
     pairs = _pairs(args.pairs) if args.pairs else PAIRS

@@ -166,7 +166,7 @@ class DeblurSettings:
         keeps the one chosen by predicting the other view (:mod:`stereodeblur.pipeline.alpha`;
         needs a scene flow); the paper's is 0.001 (:data:`PAPER_ALPHA`).
     num_irls, num_cg : int
-        Iteration counts (paper: 10, 25).
+        Iteration counts (default 4 x 25, :data:`NUM_IRLS`; paper: 10 x 25).
     num_segments : int or None
         Superpixels of the scene flow (estimated or fitted to gt); it overrides
         ``sceneflow.num_segments``. None there too: 1200 at 640x480, scaled with the area.
