@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stereodeblur.deconv import cg, irls
+from stereodeblur.deconv import _normal_equations, cg
 from stereodeblur.deconv.prior import add_weighted_laplacian, smoothness_weights
 
 # Shapes with one row or column, widths below and above the lane count, 1, 3 and 4 channels.
@@ -121,7 +121,7 @@ def test_weighted_residual_matches_numpy(shape):
     squared = np.random.default_rng(6).uniform(0, 1, shape[:2]).astype(np.float32)
     residual = np.full(shape, np.nan, np.float32)
     partial = np.full((shape[0], 1), np.nan)
-    irls._residual(blurred, reblurred, squared, residual, partial)
+    _normal_equations._residual(blurred, reblurred, squared, residual, partial)
     np.testing.assert_array_equal(residual, blurred - reblurred)
     expected = np.einsum("ij,ijc->i", squared.astype(np.float64), residual.astype(np.float64) ** 2)
     np.testing.assert_allclose(partial[:, 0], expected, rtol=1e-12)
