@@ -57,9 +57,15 @@ import numpy as np
 
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
+from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
-PAPER = {"alpha": 1e-3, "boundary_weights": "none", "num_irls": 10, "num_cg": 25}
+PAPER = {
+    "alpha": PAPER_ALPHA,
+    "boundary_weights": "none",
+    "num_irls": PAPER_IRLS,
+    "num_cg": PAPER_CG,
+}
 FRAME = 1
 MOTIONS = ("gt", "sceneflow")
 KINDS = ("family", "street")
@@ -74,7 +80,7 @@ CANDIDATES = {
     "adaptive": {"boundary_weights": "adaptive"},
     "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
     "observations": {"observations": "all"},
-    "iterations-10x25": {"num_irls": 10, "num_cg": 25},
+    "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG},
 }
 """Candidate defaults (settings overrides), checked like the default; ``adaptive`` is the
 default before 2026-11-26, ``observations`` issue 13's further observations,
@@ -95,11 +101,8 @@ class Column:
         from stereodeblur.settings import MONOCULAR_BOUNDARY_WEIGHTS
 
         if self.motion_source == "initial-flow":
-            return DeblurSettings(
-                motion_source="initial-flow",
-                kernels="displacement",
-                boundary_weights=MONOCULAR_BOUNDARY_WEIGHTS,
-            )
+            monocular = {"kernels": "displacement", "boundary_weights": MONOCULAR_BOUNDARY_WEIGHTS}
+            return DeblurSettings(motion_source="initial-flow", **(monocular | self.overrides))
         return DeblurSettings(motion_source=self.motion_source, **self.overrides)
 
 
@@ -261,13 +264,44 @@ def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
     }
 
 
-def run_scene(task) -> dict:
-    """Every column on one scene (rendered first if needed), reusing cached results."""
+def motion_for(scene, source: str, motions: dict, seconds: dict):
+    """Frame 1's motion from ``source``, computed once per scene into ``motions`` (its time
+    into ``seconds``)."""
     import warnings
 
+    from stereodeblur.pipeline import frame_motion
+
+    if source not in motions:
+        start = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            settings = Column("default", source).settings()
+            blurred = scene.read_frame("left", FRAME)
+            motions[source] = frame_motion(scene, FRAME, "left", settings, blurred)
+        seconds[source] = time.perf_counter() - start
+    return motions[source]
+
+
+def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seconds: dict) -> dict:
+    """:func:`run_column`'s result for ``column`` on ``scene`` (``truth``: its sharp frame 1),
+    from ``cache`` when its settings match, else computed (the motion by :func:`motion_for`)
+    and cached."""
+    signature = _signature(column.settings())
+    path = cache / f"{column.motion_source}_{column.key}.json"
+    data = _cached(path, signature)
+    if data is None:
+        motion = motion_for(scene, column.motion_source, motions, seconds)
+        data = run_column(scene, column, motion, truth) | {"signature": signature}
+        path.write_text(json.dumps(data, indent=1), encoding="utf-8")
+        name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
+        _log(f"{name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
+    return data
+
+
+def run_scene(task) -> dict:
+    """Every column on one scene (rendered first if needed), reusing cached results."""
     from stereodeblur.evaluation.metrics import psnr, ssim
     from stereodeblur.io.scene import open_scene
-    from stereodeblur.pipeline import frame_motion
 
     kind, seed, size, work, motions = task
     work = Path(work)
@@ -283,36 +317,18 @@ def run_scene(task) -> dict:
     cache.mkdir(parents=True, exist_ok=True)
     results, motion_seconds, motion_cache = {}, {}, {}
     for column in columns_for(motions):
-        name = f"{column.motion_source}/{column.key}"
-        signature = _signature(column.settings())
-        path = cache / f"{column.motion_source}_{column.key}.json"
-        data = _cached(path, signature)
-        if data is None:
-            source = column.motion_source
-            if source not in motion_cache:
-                t0 = time.perf_counter()
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    settings = Column("default", source).settings()
-                    motion_cache[source] = frame_motion(scene, FRAME, "left", settings, blurred)
-                motion_seconds[source] = time.perf_counter() - t0
-            data = run_column(scene, column, motion_cache[source], truth)
-            data["signature"] = signature
-            path.write_text(json.dumps(data, indent=1), encoding="utf-8")
-            _log(f"{root.name} {name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
-        results[name] = {k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")}
+        data = cached_column(scene, column, truth, cache, motion_cache, motion_seconds)
+        results[f"{column.motion_source}/{column.key}"] = {
+            k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")
+        }
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"
         signature = _signature(Column("default", source).settings()) + FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:
-            if source not in motion_cache:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    settings = Column("default", source).settings()
-                    motion_cache[source] = frame_motion(scene, FRAME, "left", settings, blurred)
-            data = frame_features(scene, motion_cache[source], source, blurred)
+            motion = motion_for(scene, source, motion_cache, motion_seconds)
+            data = frame_features(scene, motion, source, blurred)
             data["signature"] = signature
             path.write_text(json.dumps(data, indent=1), encoding="utf-8")
         features[source] = {k: v for k, v in data.items() if k != "signature"}

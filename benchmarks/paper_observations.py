@@ -80,10 +80,10 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     paper_bench.render_missing(folder / "scenes", names, size)
     rows = {}
+    iterations = DeblurSettings(num_irls=PAPER_COUNTS[0], num_cg=PAPER_COUNTS[1])
     for name in names:
         root, cache = folder / "scenes" / name, folder / "cache" / name
         row = paper_bench.evaluate_scene(root, cache, chosen, DeblurSettings())
-        iterations = DeblurSettings(num_irls=PAPER_COUNTS[0], num_cg=PAPER_COUNTS[1])
         rows[name] = (
             row.columns | paper_bench.evaluate_scene(root, cache, paper, iterations).columns
         )

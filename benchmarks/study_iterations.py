@@ -29,7 +29,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import calibrate_defaults as protocol  # noqa: E402
 
-PAIRS = ((10, 25), (10, 10), (8, 15), (8, 25), (6, 25), (5, 25), (4, 25), (3, 25), (6, 10), (4, 10))
+from stereodeblur.settings import PAPER_CG, PAPER_IRLS  # noqa: E402
+
+PAIRS = (
+    (PAPER_IRLS, PAPER_CG),
+    (10, 10),
+    (8, 15),
+    (8, 25),
+    (6, 25),
+    (5, 25),
+    (4, 25),
+    (3, 25),
+    (6, 10),
+    (4, 10),
+)
 """``(num_irls, num_cg)``; the first is the paper's (the default until stop 22)."""
 MONOCULAR_PAIRS = (PAIRS[0], (6, 25), (5, 25), (6, 10))
 """The monocular path's pairs; the first is the paper's."""
@@ -51,19 +64,9 @@ def columns(pairs=PAIRS, monocular_pairs=MONOCULAR_PAIRS) -> list[protocol.Colum
     ]
 
 
-def settings_of(column: protocol.Column):
-    """The column's settings with its counts (the protocol's monocular column has none)."""
-    from dataclasses import replace
-
-    return replace(column.settings(), **column.overrides)
-
-
 def run_scene(task) -> dict:
     """Every column on one training scene, reusing cached results."""
-    import warnings
-
     from stereodeblur.io.scene import open_scene
-    from stereodeblur.pipeline import frame_motion
 
     kind, seed, size, work, pairs, monocular_pairs = task
     if seed >= 1000:
@@ -72,47 +75,17 @@ def run_scene(task) -> dict:
     root = protocol.ensure_scene(kind, seed, size, work)
     scene = open_scene(root)
     truth = scene.read_gt_sharp("left", protocol.FRAME)
-    blurred = scene.read_frame("left", protocol.FRAME)
     cache = work / "results" / root.name
     cache.mkdir(parents=True, exist_ok=True)
-    motions, out = {}, {}
-    for column in columns(pairs, monocular_pairs):
-        settings = settings_of(column)
-        signature = protocol._signature(settings)
-        path = cache / f"{column.motion_source}_{column.key}.json"
-        data = protocol._cached(path, signature)
-        if data is None:
-            source = column.motion_source
-            if source not in motions:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    default = protocol.Column("default", source).settings()
-                    motions[source] = frame_motion(scene, protocol.FRAME, "left", default, blurred)
-            data = _run(scene, settings, motions[source], truth)
-            data["signature"] = signature
-            path.write_text(json.dumps(data, indent=1), encoding="utf-8")
-            protocol._log(f"{root.name} {source}/{column.key}: {data['psnr']:.2f} dB")
-        out[f"{column.motion_source}/{column.key}"] = data
-    return {
-        "scene": root.name,
-        "noise": json.loads((root / "gt/family.json").read_text(encoding="utf-8"))["noise"],
-        "columns": out,
+    motions, seconds = {}, {}
+    out = {
+        f"{c.motion_source}/{c.key}": protocol.cached_column(
+            scene, c, truth, cache, motions, seconds
+        )
+        for c in columns(pairs, monocular_pairs)
     }
-
-
-def _run(scene, settings, motion, truth) -> dict:
-    import warnings
-
-    from stereodeblur.evaluation.metrics import psnr
-    from stereodeblur.evaluation.paper_bench import deblur_with_motion
-
-    start = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = deblur_with_motion(scene, protocol.FRAME, settings, motion)
-    seconds = time.perf_counter() - start
-    border = protocol.border_of(truth.shape[1])
-    return {"psnr": psnr(result.image, truth, border=border), "seconds": seconds}
+    spec = json.loads((root / "gt" / "family.json").read_text(encoding="utf-8"))
+    return {"scene": root.name, "noise": spec["noise"], "columns": out}
 
 
 def report(rows, command: str, minutes: float, pairs, monocular_pairs) -> str:
