@@ -76,16 +76,18 @@ OVER_MONOCULAR = 0.5
 scenes, on average and on every one (issue 13)."""
 FEATURES_VERSION = " features 1"
 CANDIDATES = {
+    "auto": {"alpha": "auto"},
     "cross-view": {"alpha": "cross-view"},
-    "adaptive": {"boundary_weights": "adaptive"},
+    "adaptive": {"boundary_weights": "adaptive", "alpha": "auto"},
     "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
-    "observations": {"observations": "all"},
-    "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG},
+    "observations": {"observations": "all", "alpha": "auto"},
+    "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG, "alpha": "auto"},
 }
-"""Candidate defaults (settings overrides), checked like the default; ``adaptive`` is the
-default before 2026-11-26, ``observations`` issue 13's further observations,
-``iterations-10x25`` the paper's iteration counts (the default before 2026-11-26, stop 22;
-``benchmarks/study_iterations.py``)."""
+"""Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
+rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
+``observations`` issue 13's further observations, ``iterations-10x25`` the paper's iteration
+counts (the default until stop 22; ``benchmarks/study_iterations.py``); all but the
+cross-view ones with the noise rule, as they were measured."""
 
 
 @dataclass(frozen=True)

@@ -49,7 +49,7 @@ def run_scene(task) -> str:
     from stereodeblur.pipeline.motion import stereo_motion
     from stereodeblur.pipeline.window import read_window
 
-    kind, seed, size, work, views = task
+    kind, seed, size, work, views, handlings = task
     if not 0 <= seed < 1000:
         raise SystemExit(f"seed {seed} is not in the train split (0-999)")
     root = protocol.ensure_scene(kind, seed, size, Path(work))
@@ -58,7 +58,7 @@ def run_scene(task) -> str:
     out.mkdir(parents=True, exist_ok=True)
     for source in SOURCES:
         motion = window = None
-        for handling, view in ((h, v) for v in views for h in HANDLINGS):
+        for handling, view in ((h, v) for v in views for h in handlings):
             suffix = "" if view == "left" else f"_{view}"
             path = out / f"{source}_{handling}{suffix}.npz"
             if path.is_file():
@@ -91,11 +91,11 @@ def run_scene(task) -> str:
             tmp.replace(path)
             protocol._log(f"{root.name} {source} {handling} {view}: {sum(seconds):.1f} s")
         if views == ("left", "right"):
-            cross_view_costs(scene, out, source)
+            cross_view_costs(scene, out, source, handlings)
     return root.name
 
 
-def cross_view_costs(scene, out: Path, source: str) -> None:
+def cross_view_costs(scene, out: Path, source: str, handlings=HANDLINGS) -> None:
     """How well each view's solutions predict the *other* view's blurred frame, per alpha:
     ``|| A_other W x(alpha) - b_other ||^2`` (trimmed), and their own, ``|| A x - b ||^2``;
     written to SOURCE_HANDLING_cross.json."""
@@ -113,7 +113,7 @@ def cross_view_costs(scene, out: Path, source: str) -> None:
             for keep in KEEPS
         }
 
-    todo = [h for h in HANDLINGS if not (out / f"{source}_{h}_cross.json").is_file()]
+    todo = [h for h in handlings if not (out / f"{source}_{h}_cross.json").is_file()]
     if not todo:
         return
     views = ("left", "right")
@@ -149,12 +149,15 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default 320x240)")
     parser.add_argument("--work", default="/tmp/calib/work", help="scenes and solutions")
     parser.add_argument("--views", default="left", help="left or left,right (default left)")
+    parser.add_argument(
+        "--handlings", default=",".join(HANDLINGS), help="boundary handlings (default: all)"
+    )
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     args = parser.parse_args(argv)
     size = tuple(int(v) for v in args.size.lower().split("x"))
     work = str(Path(args.work) / args.size)
     tasks = [
-        (kind, seed, size, work, tuple(args.views.split(",")))
+        (kind, seed, size, work, tuple(args.views.split(",")), tuple(args.handlings.split(",")))
         for kind, seed in protocol.scene_list("train", args.scenes, protocol.KINDS)
     ]
     start = time.perf_counter()

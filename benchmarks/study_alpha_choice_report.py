@@ -69,6 +69,20 @@ def discrepancy(d: dict, *, keep: str = "0.9") -> int:
     return int(fits.max()) if fits.size else 0
 
 
+def held_out(d: dict, *, keep: str = "0.9") -> int:
+    """``alpha='held-out'``: the best predictor of the right view among the ``'auto'`` alpha
+    and the grid alphas above it (index ``len(GRID)`` is ``'auto'``). The study has the
+    costs at the grid alphas only; the cost at ``'auto'`` is interpolated in log alpha (the
+    pipeline computes it)."""
+    costs = np.log(d["cross"]["left_to_right"][keep])
+    auto = float(d["alphas"][len(GRID)])
+    above = [i for i, a in enumerate(GRID) if a > auto]
+    at_auto = np.interp(np.log10(auto), np.log10(GRID), costs)
+    if not above or at_auto <= costs[above].min():
+        return len(GRID)
+    return above[int(np.argmin(costs[above]))]
+
+
 RULES = {
     "auto (today)": None,
     "oracle (best grid alpha; not a rule)": lambda d: int(np.argmax(d["psnr"][: len(GRID)])),
@@ -84,18 +98,21 @@ RULES = {
         d, both=True, step=1
     ),
     "alpha='cross-view': left to right, 90 %, one step up": lambda d: cross_view(d, step=1),
+    "alpha='held-out': max(auto, best predictor), left to right, 90 %": held_out,
 }
 
 
-def load(work: Path) -> dict:
-    """Per scene, per (source, handling): solutions, PSNR per alpha, right view, costs."""
+def load(work: Path, handlings=HANDLINGS, paper: Path | None = None) -> dict:
+    """Per scene, per (source, handling): solutions, PSNR per alpha, right view, costs; per
+    source the paper's PSNR (``paper``: the calibration protocol's results folder, whose
+    ``paper`` column has the paper's iteration counts; else handling ``none`` at 0.001)."""
     from stereodeblur.evaluation.metrics import psnr
 
     scenes = {}
     for folder in sorted(p for p in work.iterdir() if p.is_dir()):
         runs = {}
         for source in SOURCES:
-            for handling in HANDLINGS:
+            for handling in handlings:
                 stem = folder / f"{source}_{handling}"
                 paths = [Path(f"{stem}.npz"), Path(f"{stem}_right.npz"), Path(f"{stem}_cross.json")]
                 if not all(p.is_file() for p in paths):
@@ -108,12 +125,17 @@ def load(work: Path) -> dict:
                 data["right"] = dict(np.load(paths[1]))
                 data["cross"] = json.loads(paths[2].read_text())
                 runs[(source, handling)] = data
-        if len(runs) == len(SOURCES) * len(HANDLINGS):
+            if paper is not None:
+                column = json.loads((paper / folder.name / f"{source}_paper.json").read_text())
+                runs[(source, "paper")] = column["psnr"]
+            elif (source, "none") in runs:
+                runs[(source, "paper")] = runs[(source, "none")]["psnr"][PAPER_INDEX]
+        if len(runs) == len(SOURCES) * (len(handlings) + 1):
             scenes[folder.name] = runs
     return scenes
 
 
-def table(scenes: dict) -> str:
+def table(scenes: dict, handlings=HANDLINGS) -> str:
     lines = [
         "| rule | source | handling | mean below best | worst below best "
         "| worst below paper | scenes > 0.5 below paper | checks |",
@@ -121,12 +143,12 @@ def table(scenes: dict) -> str:
     ]
     for name, rule in RULES.items():
         for source in SOURCES:
-            for handling in HANDLINGS:
+            for handling in handlings:
                 below_best, below_paper = [], []
                 for scene, runs in scenes.items():
                     d = runs[(source, handling)]
                     got = d["psnr"][-1] if rule is None else d["psnr"][rule(d)]
-                    paper = runs[(source, "none")]["psnr"][PAPER_INDEX]
+                    paper = runs[(source, "paper")]
                     below_best.append((d["psnr"][: len(GRID)].max() - got, scene))
                     below_paper.append((paper - got, scene))
                 mean = float(np.mean([b for b, _ in below_best]))
@@ -147,8 +169,8 @@ def table(scenes: dict) -> str:
     return "\n".join(lines)
 
 
-def curves(scenes: dict) -> str:
-    """Per scene and source (handling none): PSNR per alpha and the both-ways cost."""
+def curves(scenes: dict, handling: str = "none") -> str:
+    """Per scene and source: PSNR per alpha and the both-ways cost."""
     head = ", ".join(f"{a:g}" for a in GRID)
     lines = [
         f"Alphas: {head}.",
@@ -158,7 +180,7 @@ def curves(scenes: dict) -> str:
     ]
     for scene, runs in scenes.items():
         for source in SOURCES:
-            d = runs[(source, "none")]
+            d = runs[(source, handling)]
             costs = np.add(d["cross"]["left_to_right"]["0.9"], d["cross"]["right_to_left"]["0.9"])
             psnrs = " ".join(f"{p:.2f}" for p in d["psnr"][: len(GRID)])
             ratio = " ".join(f"{c / costs.min():.3f}" for c in costs)
@@ -170,11 +192,22 @@ def curves(scenes: dict) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--work", default="/tmp/calib/work/320x240/alpha_choice")
+    parser.add_argument("--handlings", default=",".join(HANDLINGS), help="(default: all)")
+    parser.add_argument(
+        "--paper", default=None, help="calibration protocol results folder with the paper column"
+    )
     parser.add_argument("--output", default=None, help="markdown file (default: print only)")
     args = parser.parse_args(argv)
-    scenes = load(Path(args.work))
+    handlings = tuple(args.handlings.split(","))
+    scenes = load(Path(args.work), handlings, Path(args.paper) if args.paper else None)
+    curve_handling = "none" if "none" in handlings else handlings[0]
     text = "\n\n".join(
-        [f"{len(scenes)} train scenes: {', '.join(scenes)}", table(scenes), curves(scenes)]
+        [
+            f"{len(scenes)} train scenes: {', '.join(scenes)}",
+            table(scenes, handlings),
+            f"Per scene, handling {curve_handling}:",
+            curves(scenes, curve_handling),
+        ]
     )
     if args.output:
         from stereodeblur.io.outputs import atomic_write_text

@@ -18,6 +18,7 @@ from .sceneflow.settings import SceneFlowSettings
 __all__ = [
     "ALPHA_MAX",
     "ALPHA_RULES",
+    "NOISE_RULES",
     "CROSS_VIEW_ALPHAS",
     "CROSS_VIEW_KEEP",
     "CROSS_VIEW_STEP",
@@ -70,15 +71,18 @@ DEFAULT_KERNELS = "homography"
 # Estimated from the blurred stereo frames: every input has them, only rendered scenes have gt
 # (the CLI's default; README.md "Paper Tables 3 and 4" measures ours with it).
 DEFAULT_MOTION_SOURCE = "sceneflow"
-# Noise- and trust-driven: README.md "Where the defaults come from" (`bench paper --alpha-sweep`,
-# `benchmarks/calibrate_alpha.py`, raw results in benchmarks/results/calibrate_alpha.txt).
-DEFAULT_ALPHA = "auto"
-# 'cross-view': alpha chosen per view by predicting the other view (stereodeblur.pipeline.alpha),
-# fitted on 24 training scenes (benchmarks/results/alpha_choice_train_320x240.md). Not the
-# default: on the 40 test scenes at 320x240 it is 0.37 / 0.34 dB below the best alpha on average
-# (auto: 0.56 / 0.57) but 2.3 / 2.4 dB at worst; at 640x480 no better than auto; 3.3x the time
-# (README.md, "The defaults on scenes they were not tuned on").
-ALPHA_RULES = ("auto", "cross-view")
+# 'held-out': the larger of the noise rule and the alpha whose solution best predicts the other
+# view (stereodeblur.pipeline.alpha). Train split, 40 scenes at 320x240, gated, 4 x 25: 0.37 /
+# 0.37 dB below the best grid alpha on average, worst 1.35 / 1.54 (true motion / scene flow),
+# against 'auto' 1.03 / 1.11, worst 5.55 / 5.83, and 'cross-view' 0.44 / 0.32, worst 2.58 / 2.56
+# (benchmarks/study_alpha_choice.py; results/alpha_rules_train_320x240.md).
+DEFAULT_ALPHA = "held-out"
+# 'auto': noise- and trust-driven (README.md "Where the defaults come from",
+# benchmarks/calibrate_alpha.py); the default until stop 23, and 'held-out''s floor.
+# 'cross-view': the best predictor of the other view one grid step up (alpha_choice_train_*.md).
+ALPHA_RULES = ("auto", "cross-view", "held-out")
+NOISE_RULES = ("auto", "held-out")
+"""The rules whose alpha is at least the noise rule's (:func:`~.pipeline.weights.resolve_alpha`)."""
 # The calibration protocol's grid (issue 12); alpha='cross-view' solves at each of them.
 CROSS_VIEW_ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 # Training study: the best predictor of the other view is one grid step (x3) below the best
@@ -156,15 +160,19 @@ class DeblurSettings:
         flow (needs ``kernels='displacement'``). See :mod:`stereodeblur.pipeline`.
     num_samples : int
         Time samples over the exposure (paper: N = 70).
-    alpha : float, 'auto' or 'cross-view'
-        Prior weight of Eq. 6; ``'auto'`` (default) sets it from the noise level of the
-        blurred frame (:func:`stereodeblur.deconv.noise.auto_alpha`), and with
-        ``boundary_weights='gated'`` or ``'adaptive'`` at least to what the share of pixels
-        whose motion
-        is not trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`);
+    alpha : float, 'held-out', 'auto' or 'cross-view'
+        Prior weight of Eq. 6. ``'held-out'`` (default) deblurs each view at the ``'auto'``
+        alpha and at every alpha of :data:`CROSS_VIEW_ALPHAS` above it and keeps the one
+        whose solution best predicts the other view (:mod:`stereodeblur.pipeline.alpha`);
+        without the other view (``motion_source='initial-flow'``, a given motion of one
+        view) or where it is observed (``observations`` 'other-view', 'all') it is
+        ``'auto'``. ``'auto'`` sets it from the noise level of the blurred frame
+        (:func:`stereodeblur.deconv.noise.auto_alpha`), and with ``boundary_weights``
+        'gated' or 'adaptive' at least to what the share of pixels whose motion is not
+        trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`).
         ``'cross-view'`` deblurs each view at every alpha of :data:`CROSS_VIEW_ALPHAS` and
-        keeps the one chosen by predicting the other view (:mod:`stereodeblur.pipeline.alpha`;
-        needs a scene flow); the paper's is 0.001 (:data:`PAPER_ALPHA`).
+        keeps the one one step above the best predictor of the other view (needs a scene
+        flow). The paper's is 0.001 (:data:`PAPER_ALPHA`).
     num_irls, num_cg : int
         Iteration counts (default 4 x 25, :data:`NUM_IRLS`; paper: 10 x 25).
     num_segments : int or None
@@ -246,7 +254,7 @@ class DeblurSettings:
                 and 0 < self.alpha <= ALPHA_MAX
             ):
                 raise InputError(
-                    f"alpha must be 'auto', 'cross-view' or in (0, {ALPHA_MAX:g}], "
+                    f"alpha must be 'held-out', 'auto', 'cross-view' or in (0, {ALPHA_MAX:g}], "
                     f"got {self.alpha!r}",
                     parameter="alpha",
                 )

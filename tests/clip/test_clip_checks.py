@@ -1,6 +1,7 @@
 """deblur_clip checks everything before the first frame: a bad input is an InputError naming
 the file, and nothing is written."""
 
+import dataclasses
 import shutil
 
 import numpy as np
@@ -50,9 +51,24 @@ def test_truncated_frame_is_found_before_the_first_frame(scene, tmp_path):
 
 
 def test_only_the_views_a_run_reads_are_checked(scene, tmp_path):
-    (scene / "right" / "000001.png").write_bytes(b"")  # gt motion reads the left view only
-    report = _run(scene, tmp_path / "out", frames=[1], views=["left"], workers=1)
+    path = scene / "right" / "000001.png"
+    path.write_bytes(b"")  # with gt motion and alpha 'auto' the left view alone is read
+    spec = SourceSpec.from_arguments(scene)
+    settings = dataclasses.replace(SETTINGS, alpha="auto")
+    report = deblur_clip(
+        spec,
+        tmp_path / "out",
+        settings=settings,
+        progress=False,
+        frames=[1],
+        views=["left"],
+        workers=1,
+    )
     assert report.done == 1
+    out = tmp_path / "held-out"  # the default alpha predicts the right view: it is read
+    with pytest.raises(InputError, match=str(path)):
+        _run(scene, out, frames=[1], views=["left"], workers=1)
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""alpha='cross-view': each view's alpha chosen by predicting the other view."""
+"""Alpha chosen by predicting the other view: 'cross-view' and 'held-out'."""
 
 import numpy as np
 import pytest
@@ -107,5 +107,57 @@ def test_given_motion_is_refused(scene):
 def test_the_option_accepts_the_rule():
     assert alpha_option("cross-view") == "cross-view"
     assert DeblurSettings(alpha="cross-view").alpha == "cross-view"
-    with pytest.raises(InputError, match="'auto', 'cross-view' or in"):
+    with pytest.raises(InputError, match="'held-out', 'auto', 'cross-view' or in"):
         DeblurSettings(alpha="crossview")
+
+
+@pytest.mark.parametrize("source", ["gt", "sceneflow"])
+def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(
+    scene, source, monkeypatch
+):
+    from stereodeblur.pipeline import frame as frame_module
+
+    errors = []
+    real = frame_module.prediction_error
+
+    def recorded(image, other, *, border):
+        errors.append(real(image, other, border=border))
+        return errors[-1]
+
+    monkeypatch.setattr(frame_module, "prediction_error", recorded)
+    settings = DeblurSettings(**FAST, motion_source=source, alpha="held-out")
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    auto = deblur_stereo_frame(
+        scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha="auto")
+    ).frames["left"]
+    candidates = [auto.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > auto.alpha)]
+    assert len(errors) == len(candidates) >= 2 and len(set(errors)) == len(errors)
+    assert chosen.alpha == candidates[int(np.argmin(errors))]
+    fixed = DeblurSettings(**FAST, motion_source=source, alpha=chosen.alpha)
+    expected = deblur_stereo_frame(scene, 1, settings=fixed).frames["left"]
+    np.testing.assert_array_equal(chosen.image, expected.image)
+
+
+def test_held_out_is_auto_without_the_other_view(scene):
+    monocular = {**FAST, "motion_source": "initial-flow", "kernels": "displacement"}
+    held_out = deblur_frame(scene, 1, settings=DeblurSettings(**monocular, alpha="held-out"))
+    auto = deblur_frame(scene, 1, settings=DeblurSettings(**monocular, alpha="auto"))
+    assert held_out.alpha == auto.alpha
+    np.testing.assert_array_equal(held_out.image, auto.image)
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    motion = deblur_frame(scene, 1, settings=settings).motion  # a given motion of one view
+    given = deblur_frame(scene, 1, settings=settings, motion=motion)
+    plain = deblur_frame(
+        scene, 1, settings=DeblurSettings(**FAST, motion_source="gt", alpha="auto")
+    )
+    assert given.alpha == plain.alpha
+    np.testing.assert_array_equal(given.image, plain.image)
+
+
+def test_held_out_is_auto_where_the_other_view_is_observed(scene):
+    observed = {**FAST, "motion_source": "gt", "observations": "other-view"}
+    held_out = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, alpha="held-out"))
+    auto = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, alpha="auto"))
+    for view in ("left", "right"):
+        assert held_out.frames[view].alpha == auto.frames[view].alpha
+        np.testing.assert_array_equal(held_out.frames[view].image, auto.frames[view].image)

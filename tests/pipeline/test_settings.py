@@ -15,7 +15,7 @@ def test_defaults_are_the_module_constants():
     assert s.motion_source == "sceneflow" == defaults.DEFAULT_MOTION_SOURCE
     assert (s.num_samples, s.num_irls, s.num_cg) == (70, 4, 25)
     assert s.num_samples == defaults.NUM_SAMPLES and defaults.PAPER_ALPHA == 1e-3
-    assert (s.kernels, s.alpha, s.boundary_weights) == ("homography", "auto", "gated")
+    assert (s.kernels, s.alpha, s.boundary_weights) == ("homography", "held-out", "gated")
     assert s.sceneflow == SceneFlowSettings()
 
 
@@ -44,7 +44,7 @@ def test_num_segments_overrides_the_estimators():
         ("num_cg", 0, r"num_cg must be a whole number in 1\.\.1000"),
         ("num_irls", 1001, r"in 1\.\.1000"),
         ("num_segments", 10**6, r"in 1\.\.100000"),
-        ("alpha", 1e300, r"alpha must be 'auto', 'cross-view' or in \(0, 1\]"),
+        ("alpha", 1e300, r"alpha must be 'held-out', 'auto', 'cross-view' or in \(0, 1\]"),
         ("sceneflow", {"num_segments": 3}, "SceneFlowSettings"),
     ],
 )

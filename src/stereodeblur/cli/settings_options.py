@@ -14,8 +14,9 @@ types before anything is read or allocated:
   before they are merged); 1000, 14 times the paper's N = 70, is past any gain.
 - ``--irls`` and ``--cg`` in 1..1000: 0 iterations return the input unchanged; the paper
   uses 10 and 25, and each IRLS iteration keeps its weights (one float per pixel).
-- ``--alpha`` ``auto``, ``cross-view`` or in (0, 1]: the prior weight of Eq. 6 for images in
-  [0, 1]; at 1 the prior already outweighs the data term, beyond it the result is flat.
+- ``--alpha`` ``held-out``, ``auto``, ``cross-view`` or in (0, 1]: the prior weight of Eq. 6
+  for images in [0, 1]; at 1 the prior already outweighs the data term, beyond it the result
+  is flat.
 - ``--segments`` in 1..100000 superpixels.
 """
 
@@ -39,20 +40,19 @@ def _settings_module():
     return settings
 
 
+_RULES = ", ".join(f"'{r}'" for r in ALPHA_RULES)
+
+
 def alpha(text: str) -> float | str:
-    """Option type of ``--alpha``: ``'auto'``, ``'cross-view'`` or a number in (0, 1]."""
+    """Option type of ``--alpha``: a rule of :data:`ALPHA_RULES` or a number in (0, 1]."""
     if text in ALPHA_RULES:
         return text
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected 'auto', 'cross-view' or a number, got {text!r}"
-        ) from None
+        raise argparse.ArgumentTypeError(f"expected {_RULES} or a number, got {text!r}") from None
     if not 0 < value <= ALPHA_MAX:
-        raise argparse.ArgumentTypeError(
-            f"must be 'auto', 'cross-view' or in (0, {ALPHA_MAX:g}], got {text!r}"
-        )
+        raise argparse.ArgumentTypeError(f"must be {_RULES} or in (0, {ALPHA_MAX:g}], got {text!r}")
     return value
 
 
@@ -93,9 +93,10 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "alpha",
             "--alpha",
-            "prior weight in (0, 1]; 'auto': from the input's noise level (default); "
-            "'cross-view': the grid alpha that best predicts the other view, one step up "
-            "(6 solves per view; paper: 0.001)",
+            "prior weight in (0, 1]; 'held-out' (default): the larger of 'auto' and the grid "
+            "alpha that best predicts the other view (up to 6 solves per view); 'auto': from "
+            "the input's noise level; 'cross-view': the grid alpha that best predicts the "
+            "other view, one step up (6 solves per view; paper: 0.001)",
             type=alpha,
             metavar="ALPHA",
         ),

@@ -40,6 +40,7 @@ from ..io.outputs import (
 )
 from ..io.protocol import StereoScene
 from ..io.sources import SourceSpec
+from ..pipeline.window import views_read
 from .checks import check_arguments, check_gt_files, check_inputs, select_gt_frames
 from .executors import DaskExecutor, default_workers, make_executor
 from .job import ClipJob, ClipReport, FrameRecord, is_finished, make_tasks, remove_temporaries
@@ -111,8 +112,9 @@ def _prepare(spec: SourceSpec, frames, views, settings) -> _Plan:
     with captured_stderr(messages), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         scene = spec.open()
-        frames, without_gt = _select_frames(scene, frames, settings, views)
-        check_inputs(scene, views, frames, settings)
+        read = views_read(settings, views)
+        frames, without_gt = _select_frames(scene, frames, settings, read)
+        check_inputs(scene, read, frames, settings)
     warned = [*scene.warnings]
     warned += [f"frame {i}: no ground-truth motion, not deblurred" for i in without_gt]
     notes = [*warned, *(str(w.message) for w in caught), *messages]

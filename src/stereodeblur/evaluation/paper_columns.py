@@ -11,8 +11,8 @@ initial optical flow          initial-flow     displacement  none               
 2D projection of scene flow   sceneflow        displacement  none               0.001
 3D homographies               sceneflow        homography    none               0.001
 paper (full)                  sceneflow        homography    paper (Eq. 5)      0.001
-monocular (same defaults)     initial-flow     displacement  adaptive           auto
-ours (full)                   sceneflow        homography    gated (default)    auto
+monocular (same defaults)     initial-flow     displacement  adaptive           default
+ours (full)                   sceneflow        homography    gated (default)    default
 ============================  ===============  ============  =================  ========
 
 Every column but "ours (full)" (and the true-motion and sweep runs of it, which take the
@@ -21,7 +21,8 @@ columns and Table 2 run the paper's 10 IRLS x 25 CG iterations; "monocular" and 
 default counts (both set by ``--irls`` / ``--cg`` when given).
 
 "Monocular (same defaults)" is the strongest monocular alternative: our solver, alpha rule
-and boundary handling on the initial optical flow (the handling of
+(``'held-out'`` is ``'auto'`` there: no other view) and boundary handling on the initial
+optical flow (the handling of
 :data:`~stereodeblur.settings.MONOCULAR_BOUNDARY_WEIGHTS`). Table 2 ("without motion
 discontinuities") repeats the first four with ``boundary_mask='gt'``: the scene's gt/mixed
 pixels get weight 0 throughout. Tables 3 (PSNR) and 4 (SSIM) use all seven columns without
@@ -29,7 +30,7 @@ the mask. A seventh run,
 "ours, true motion" (:data:`TRUE_MOTION`: ours full with motion source gt, the same
 piecewise-planar model fitted to the true disparity and flow), is no method but shows how
 far a better motion estimate could take the blur model. The alpha sweep deblurs with
-"ours (full)" at every alpha of :data:`ALPHA_SWEEP` and compares with ``alpha='auto'``.
+"ours (full)" at every alpha of :data:`ALPHA_SWEEP` and compares with the default alpha.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 from ..settings import (
+    DEFAULT_ALPHA,
     DEFAULT_BOUNDARY_WEIGHTS,
     DEFAULT_OBSERVATIONS,
     MONOCULAR_BOUNDARY_WEIGHTS,
@@ -116,7 +118,7 @@ COLUMNS = (
         "initial-flow",
         "displacement",
         MONOCULAR_BOUNDARY_WEIGHTS,
-        "auto",
+        DEFAULT_ALPHA,
     ),
     Column(
         "ours-full",
@@ -124,7 +126,7 @@ COLUMNS = (
         "sceneflow",
         "homography",
         DEFAULT_BOUNDARY_WEIGHTS,
-        "auto",
+        DEFAULT_ALPHA,
         observations=DEFAULT_OBSERVATIONS,
     ),
 )
@@ -141,7 +143,7 @@ TRUE_MOTION = Column(
     "gt",
     "homography",
     DEFAULT_BOUNDARY_WEIGHTS,
-    "auto",
+    DEFAULT_ALPHA,
     observations=DEFAULT_OBSERVATIONS,
 )
 """Ours (full) with the scene flow fitted to the true disparity and flow: how far a better

@@ -29,8 +29,10 @@ from .window import (
     check_gt,
     check_views,
     observation_kinds,
+    predicts_other_view,
     read_window,
     uses_boundary_flow,
+    views_read,
 )
 
 if TYPE_CHECKING:
@@ -162,10 +164,10 @@ def deblur_view(
         timings["operator"] = time.perf_counter() - start
     start = time.perf_counter()  # the data terms count as part of the deconvolution
     blurred = window.blurred(view)
-    if settings.alpha == "cross-view":
-        if other is None:
-            raise InputError("alpha='cross-view' needs the other view", parameter="alpha")
-        terms, result = _cross_view_solve(
+    if settings.alpha == "cross-view" and other is None:
+        raise InputError("alpha='cross-view' needs the other view", parameter="alpha")
+    if settings.alpha in ("cross-view", "held-out") and other is not None:
+        terms, result = _alpha_choice_solve(
             scene,
             window,
             view,
@@ -203,16 +205,23 @@ def deblur_view(
     )
 
 
-def _cross_view_solve(
+def _alpha_choice_solve(
     scene, window, view, blurred, operator, settings, other, weights, observations, progress
 ):
-    """Solve at every alpha of :data:`CROSS_VIEW_ALPHAS`; keep the one chosen by
-    predicting ``other`` (:mod:`.alpha`). Returns its data terms and result."""
-    fixed = replace(settings, alpha=CROSS_VIEW_ALPHAS[0])
+    """Solve at each candidate alpha and keep the one chosen by predicting ``other``
+    (:mod:`.alpha`): for ``'cross-view'`` every alpha of :data:`CROSS_VIEW_ALPHAS`, one step
+    above the best predictor; for ``'held-out'`` the ``'auto'`` alpha and those of the grid
+    above it, the best predictor. Returns its data terms and result."""
+    held_out = settings.alpha == "held-out"
+    fixed = replace(settings, alpha="auto" if held_out else CROSS_VIEW_ALPHAS[0])
     base = data_terms(scene, window, view, operator, fixed)
+    fixed = replace(fixed, alpha=base.alpha)
+    candidates = CROSS_VIEW_ALPHAS
+    if held_out:
+        candidates = (base.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > base.alpha))
     border = border_for(blurred.shape[1])
     runs, errors = [], []
-    for alpha in CROSS_VIEW_ALPHAS:
+    for alpha in candidates:
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
         result = solve(
@@ -226,13 +235,14 @@ def _cross_view_solve(
         )
         errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
         runs.append((terms, result))
-    return runs[choose(errors)]
+    return runs[int(np.argmin(errors)) if held_out else choose(errors)]
 
 
 def needs_stereo_pass(settings: DeblurSettings) -> bool:
     """Whether a view's deblurring computes the motion itself (:func:`deblur_frame` then
-    refuses a given motion): ``alpha='cross-view'`` or further observations."""
-    return settings.alpha == "cross-view" or bool(observation_kinds(settings))
+    refuses a given motion, or with ``alpha='held-out'`` takes ``'auto'``): an alpha that
+    predicts the other view or further observations."""
+    return predicts_other_view(settings) or bool(observation_kinds(settings))
 
 
 def deblur_frame(
@@ -249,10 +259,13 @@ def deblur_frame(
 
     ``weights`` replaces the initial data weights chosen by ``settings``; ``motion``
     (from :func:`~.motion.frame_motion` with the same settings) skips the motion
-    estimation. Reports progress as ``"frame {index} {view}: ..."``.
+    estimation; with either, ``alpha='held-out'`` is ``'auto'`` (the other view is not
+    known). Reports progress as ``"frame {index} {view}: ..."``.
     """
     settings = settings or DeblurSettings()
     (view,) = check_views((view,))
+    if settings.alpha == "held-out" and (motion is not None or weights is not None):
+        settings = replace(settings, alpha="auto")  # the other view is not known
     if needs_stereo_pass(settings):
         if motion is not None or weights is not None:  # it needs both views' motion
             name = "alpha" if settings.alpha == "cross-view" else "observations"
@@ -297,10 +310,9 @@ def deblur_stereo_frame(
     """
     settings = settings or DeblurSettings()
     views = check_views(views)
-    cross_view = settings.alpha == "cross-view"
+    cross_view = predicts_other_view(settings)
     kinds = observation_kinds(settings)
-    # alpha='cross-view' predicts the other view; 'other-view' observes it
-    needed = VIEWS if cross_view or "other-view" in kinds else views
+    needed = views_read(settings, views)
     timings = {}
     start = time.perf_counter()
     check_gt(scene, index, settings, needed)

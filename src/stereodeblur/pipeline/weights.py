@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
+from ..settings import NOISE_RULES
 from .motion import FrameMotion
 from .operator import GateTrusts, ViewOperator
 from .window import FrameWindow
@@ -141,11 +142,12 @@ def gate_trusts(
 
 
 def resolve_alpha(settings: DeblurSettings, blurred: np.ndarray, trust=None, *, noise_sigma=None):
-    """The prior weight of a run: ``settings.alpha``, or for ``'auto'``
-    :func:`~stereodeblur.deconv.noise.auto_alpha` of ``blurred`` (from ``noise_sigma`` if
-    given), raised to :func:`~stereodeblur.deconv.trust.alpha_from_trust` with a trust map.
+    """The prior weight of a run: ``settings.alpha``, or for ``'auto'`` (and as the floor of
+    ``'held-out'``) :func:`~stereodeblur.deconv.noise.auto_alpha` of ``blurred`` (from
+    ``noise_sigma`` if given), raised to :func:`~stereodeblur.deconv.trust.alpha_from_trust`
+    with a trust map.
     """
-    if settings.alpha != "auto":
+    if settings.alpha not in NOISE_RULES:
         return float(settings.alpha)
     from ..deconv.noise import alpha_from_sigma, estimate_noise_sigma
 
@@ -210,7 +212,7 @@ def data_terms(
             alpha_trust = gate.own
         else:
             motions, bands = [motion], [None]
-            if dense_rows and settings.alpha == "auto":  # and the own flow's, in its band
+            if dense_rows and settings.alpha in NOISE_RULES:  # and the own flow's, in its band
                 motions.append(view_operator.own)
                 bands.append(view_operator.flow_rows)
             trusts = frame_trusts(window, view, motions, noise_sigma=sigma, bands=bands)

@@ -70,6 +70,24 @@ def observation_kinds(settings: DeblurSettings) -> tuple[str, ...]:
     return kinds.get(settings.observations, (settings.observations,))
 
 
+def predicts_other_view(settings: DeblurSettings) -> bool:
+    """Whether each view's alpha is chosen by predicting the other view: ``'cross-view'``,
+    and ``'held-out'`` where the motion has a disparity (not ``'initial-flow'``) and the
+    other view is not observed (then it is not held out)."""
+    if settings.alpha == "held-out":
+        other_observed = "other-view" in observation_kinds(settings)
+        return settings.motion_source != "initial-flow" and not other_observed
+    return settings.alpha == "cross-view"
+
+
+def views_read(settings: DeblurSettings, views) -> tuple[str, ...]:
+    """The views whose frames and motion a pass deblurring ``views`` reads: both where each
+    view's alpha predicts the other view or observes it, else ``views``."""
+    if predicts_other_view(settings) or "other-view" in observation_kinds(settings):
+        return VIEWS
+    return tuple(views)
+
+
 def uses_dense_flow(settings: DeblurSettings) -> bool:
     """Whether a run with ``settings`` computes the views' dense optical flow."""
     return settings.motion_source == "initial-flow" or (
