@@ -1,15 +1,20 @@
-"""Prior weight chosen per view by cross-view prediction (``alpha='cross-view'``).
+"""Prior weight chosen per view by cross-view prediction (``alpha='held-out'``, the
+default, and ``alpha='cross-view'``).
 
-The view is deblurred at every alpha of :data:`~stereodeblur.settings.CROSS_VIEW_ALPHAS`.
+The view is deblurred at several alphas: ``'held-out'`` at the noise rule's (``'auto'``)
+and at every alpha of :data:`~stereodeblur.settings.CROSS_VIEW_ALPHAS` above it,
+``'cross-view'`` at every alpha of the grid.
 Each solution is carried to the other view through that view's disparity, blurred with
 the other view's operator and compared with the other view's blurred frame, a held-out
 observation with its own noise and its own model error. Pixels the other view cannot
 see (occlusions, the image edge) give the largest errors, so only the smallest
 :data:`~stereodeblur.settings.CROSS_VIEW_KEEP` of the per-pixel errors count. The
-prediction is made in the blurred domain, where the blur hides the errors that alpha
-suppresses, so it prefers too little regularisation. The choice is therefore taken
-:data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor
-(``benchmarks/study_alpha_choice.py``).
+prediction is made in the blurred domain, where the blur hides part of the estimate's error
+(the noise it averages away, the detail it removes), so on its own it often picks too little
+regularisation for noisy frames. ``'held-out'`` therefore keeps the best predictor among
+alphas no smaller than the noise rule's; ``'cross-view'`` takes
+:data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
+whole grid (``benchmarks/study_alpha_choice.py``).
 """
 
 from __future__ import annotations

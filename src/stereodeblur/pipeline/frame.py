@@ -215,7 +215,6 @@ def _alpha_choice_solve(
     held_out = settings.alpha == "held-out"
     fixed = replace(settings, alpha="auto" if held_out else CROSS_VIEW_ALPHAS[0])
     base = data_terms(scene, window, view, operator, fixed)
-    fixed = replace(fixed, alpha=base.alpha)
     candidates = CROSS_VIEW_ALPHAS
     if held_out:
         candidates = (base.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > base.alpha))
