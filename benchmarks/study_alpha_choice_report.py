@@ -70,17 +70,18 @@ def discrepancy(d: dict, *, keep: str = "0.9") -> int:
 
 
 def held_out(d: dict, *, keep: str = "0.9") -> int:
-    """``alpha='held-out'``: the best predictor of the right view among the ``'auto'`` alpha
-    and the grid alphas above it (index ``len(GRID)`` is ``'auto'``). The study has the
-    costs at the grid alphas only; the cost at ``'auto'`` is interpolated in log alpha (the
-    pipeline computes it)."""
+    """``alpha='held-out'``: from the ``'auto'`` alpha up the grid alphas above it while
+    the prediction error of the right view falls (index ``len(GRID)`` is ``'auto'``). The
+    study has the costs at the grid alphas only; the cost at ``'auto'`` is interpolated in
+    log alpha (the pipeline computes it)."""
     costs = np.log(d["cross"]["left_to_right"][keep])
     auto = float(d["alphas"][len(GRID)])
-    above = [i for i, a in enumerate(GRID) if a > auto]
-    at_auto = np.interp(np.log10(auto), np.log10(GRID), costs)
-    if not above or at_auto <= costs[above].min():
-        return len(GRID)
-    return above[int(np.argmin(costs[above]))]
+    chosen = [len(GRID)] + [i for i, a in enumerate(GRID) if a > auto]
+    path = [np.interp(np.log10(auto), np.log10(GRID), costs)] + [costs[i] for i in chosen[1:]]
+    k = 0
+    while k + 1 < len(path) and path[k + 1] < path[k]:
+        k += 1
+    return chosen[k]
 
 
 RULES = {
@@ -98,7 +99,7 @@ RULES = {
         d, both=True, step=1
     ),
     "alpha='cross-view': left to right, 90 %, one step up": lambda d: cross_view(d, step=1),
-    "alpha='held-out': max(auto, best predictor), left to right, 90 %": held_out,
+    "alpha='held-out': up from auto while the prediction improves, left to right, 90 %": held_out,
 }
 
 

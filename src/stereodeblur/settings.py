@@ -71,12 +71,13 @@ DEFAULT_KERNELS = "homography"
 # Estimated from the blurred stereo frames: every input has them, only rendered scenes have gt
 # (the CLI's default; README.md "Paper Tables 3 and 4" measures ours with it).
 DEFAULT_MOTION_SOURCE = "sceneflow"
-# 'held-out': the larger of the noise rule and the alpha whose solution best predicts the other
-# view (stereodeblur.pipeline.alpha). Train split, 40 scenes at 320x240, gated, 4 x 25: 0.37 /
-# 0.37 dB below the best grid alpha on average, worst 1.35 / 1.54 (true motion / scene flow),
-# against 'auto' 1.03 / 1.11, worst 5.55 / 5.83, and 'cross-view' 0.44 / 0.32, worst 2.58 / 2.56
-# (benchmarks/study_alpha_choice.py; results/alpha_rules_train_320x240.md). Test split: never
-# more than 0.04 dB below 'auto', +0.23 / +0.46 dB on average (results/calibrate_defaults_test_*).
+# 'held-out': from the noise rule's alpha up the grid while the solution's prediction of the
+# other view improves (stereodeblur.pipeline.alpha). Train split, 40 scenes at 320x240, gated,
+# 4 x 25: 0.37 / 0.37 dB below the best grid alpha on average, worst 1.35 / 1.54 (true motion /
+# scene flow), against 'auto' 1.03 / 1.11, worst 5.55 / 5.83, and 'cross-view' 0.44 / 0.32,
+# worst 2.58 / 2.56 (benchmarks/study_alpha_choice.py; results/alpha_rules_train_320x240.md).
+# Test split: never more than 0.04 dB below 'auto', +0.23 / +0.46 dB on average
+# (results/calibrate_defaults_test_*); bench paper's noisy planar scenes -0.47 dB (README).
 DEFAULT_ALPHA = "held-out"
 # 'auto': noise- and trust-driven (README.md "Where the defaults come from",
 # benchmarks/calibrate_alpha.py); the default until stop 23, and 'held-out''s floor.
