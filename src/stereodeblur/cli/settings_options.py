@@ -93,9 +93,9 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "alpha",
             "--alpha",
-            "prior weight in (0, 1]; 'held-out' (default): the larger of 'auto' and the grid "
-            "alpha that best predicts the other view (up to 6 solves per view); 'auto': from "
-            "the input's noise level; 'cross-view': the grid alpha that best predicts the "
+            "prior weight in (0, 1]; 'held-out' (default): from 'auto' up the grid alphas "
+            "while the solution predicts the other view better (2-6 solves per view); 'auto': "
+            "from the input's noise level; 'cross-view': the grid alpha that best predicts the "
             "other view, one step up (6 solves per view; paper: 0.001)",
             type=alpha,
             metavar="ALPHA",
