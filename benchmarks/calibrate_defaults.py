@@ -23,7 +23,8 @@ estimated), the motion computed once per scene and source
 - ``paper``: the paper's settings, ``alpha=0.001``, ``boundary_weights='none'``, 10 IRLS x
   25 CG iterations;
 - the candidates of :data:`CANDIDATES` (``alpha='cross-view'`` computes the motion of both
-  views itself), each checked like the default against the grid of its own boundary handling;
+  views itself), each checked like the default against the grid of its own boundary handling
+  (``--candidates`` runs some of them, ``none`` none);
 - ``alpha=A`` for A in :data:`ALPHAS`, the default boundary handling, and ``HANDLING-alpha=A``
   for a candidate's other handling;
 
@@ -118,14 +119,16 @@ def grid_prefix(key: str) -> str:
     return "" if handling is None else f"{handling}-"
 
 
-def columns_for(motions) -> list[Column]:
-    """Every column for the motion sources ``motions``; the monocular one with ``sceneflow``."""
-    handlings = dict.fromkeys(grid_prefix(key) for key in CANDIDATES if grid_prefix(key))
+def columns_for(motions, candidates=tuple(CANDIDATES)) -> list[Column]:
+    """Every column for the motion sources ``motions`` and the keys ``candidates`` of
+    :data:`CANDIDATES`; the monocular one with ``sceneflow``."""
+    chosen = {key: CANDIDATES[key] for key in candidates}
+    handlings = dict.fromkeys(grid_prefix(key) for key in chosen if grid_prefix(key))
     out = []
     for source in motions:
         out.append(Column("default", source))
         out.append(Column("paper", source, dict(PAPER)))
-        out += [Column(key, source, dict(overrides)) for key, overrides in CANDIDATES.items()]
+        out += [Column(key, source, dict(overrides)) for key, overrides in chosen.items()]
         out += [Column(alpha_key(a), source, {"alpha": a}) for a in ALPHAS]
         for prefix in handlings:
             overrides = {"boundary_weights": prefix[:-1]}
@@ -305,7 +308,7 @@ def run_scene(task) -> dict:
     from stereodeblur.evaluation.metrics import psnr, ssim
     from stereodeblur.io.scene import open_scene
 
-    kind, seed, size, work, motions = task
+    kind, seed, size, work, motions, candidates = task
     work = Path(work)
     start = time.perf_counter()
     root = ensure_scene(kind, seed, size, work)
@@ -318,7 +321,7 @@ def run_scene(task) -> dict:
     cache = work / "results" / root.name
     cache.mkdir(parents=True, exist_ok=True)
     results, motion_seconds, motion_cache = {}, {}, {}
-    for column in columns_for(motions):
+    for column in columns_for(motions, candidates):
         data = cached_column(scene, column, truth, cache, motion_cache, motion_seconds)
         results[f"{column.motion_source}/{column.key}"] = {
             k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")
@@ -442,12 +445,13 @@ def scene_table(row: dict, motions) -> list[str]:
         "| column | " + " | ".join(f"{m} PSNR / SSIM" for m in motions) + " |",
         "|---|" + "---|" * len(motions),
     ]
-    prefixes = dict.fromkeys(["", *(grid_prefix(k) for k in CANDIDATES)])
-    keys = ["default", *CANDIDATES, "paper"]
+    candidates = [k for k in CANDIDATES if f"{motions[0]}/{k}" in row["columns"]]
+    prefixes = dict.fromkeys(["", *(grid_prefix(k) for k in candidates)])
+    keys = ["default", *candidates, "paper"]
     keys += [p + alpha_key(a) for p in prefixes for a in ALPHAS]
     for key in keys:
         cells = [_cell(row["columns"].get(f"{m}/{key}")) for m in motions]
-        if key == "default" or key in CANDIDATES:
+        if key == "default" or key in candidates:
             alphas = [row["columns"][f"{m}/{key}"]["alpha"] for m in motions]
             key = f"{key} (alpha " + ", ".join(f"{a:.2g}" for a in alphas) + ")"
         lines.append(f"| {key} | " + " | ".join(cells) + " |")
@@ -496,7 +500,7 @@ def code_version() -> str:
 def report(rows, args, seconds: float) -> str:
     motions = args.motions
     passed = checks(rows, motions)
-    for key in CANDIDATES:
+    for key in args.candidates:
         passed += checks(rows, motions, key)
     lines = [
         f"# Calibration protocol: {args.split} split, {args.size}, {len(rows)} scenes",
@@ -516,7 +520,7 @@ def report(rows, args, seconds: float) -> str:
     ]
     lines += [f"- {'PASS' if ok else 'FAIL'}: {name} ({figures})" for name, ok, figures in passed]
     if "sceneflow" in motions:
-        semi_real = monocular_checks(rows, ["default", *CANDIDATES])
+        semi_real = monocular_checks(rows, ["default", *args.candidates])
         if semi_real:
             lines += ["", "## Checks (issue 13): semi-real scenes against the monocular path", ""]
             lines += [f"- {'PASS' if ok else 'FAIL'}: {n} ({f})" for n, ok, f in semi_real]
@@ -539,6 +543,11 @@ def parse(argv=None):
         default=str(Path(tempfile.gettempdir()) / "stereodeblur_calibration"),
         help="cache folder of rendered scenes and results (default: in the temp folder)",
     )
+    parser.add_argument(
+        "--candidates",
+        default=",".join(CANDIDATES),
+        help="keys of CANDIDATES to run, comma-separated, or 'none' (default: all)",
+    )
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     parser.add_argument("--output", default=None, help="markdown output (and .json beside)")
     args = parser.parse_args(argv)
@@ -549,6 +558,10 @@ def parse(argv=None):
     args.size_pair = (width, height)
     args.kinds = tuple(k for k in args.kinds.split(",") if k)
     args.motions = tuple(m for m in args.motions.split(",") if m)
+    names = args.candidates.split(",") if args.candidates != "none" else []
+    args.candidates = tuple(n for n in names if n)
+    if set(args.candidates) - set(CANDIDATES):
+        parser.error(f"--candidates must name some of {', '.join(CANDIDATES)} or be 'none'")
     if not args.kinds or set(args.kinds) - set(KINDS):
         parser.error(f"--kinds must name some of {', '.join(KINDS)}")
     if not args.motions or set(args.motions) - set(MOTIONS):
@@ -576,7 +589,7 @@ def main(argv=None) -> int:
     args = parse(argv)
     work = Path(args.work) / args.size
     tasks = [
-        (kind, seed, args.size_pair, str(work), args.motions)
+        (kind, seed, args.size_pair, str(work), args.motions, args.candidates)
         for kind, seed in scene_list(args.split, args.scenes, args.kinds)
     ]
     start = time.perf_counter()
