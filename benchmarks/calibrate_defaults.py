@@ -178,11 +178,13 @@ def _signature(settings) -> str:
 
 
 def _cached(path: Path, signature: str) -> dict | None:
-    if path.is_file():
+    """The cached result at ``path`` if it was made with ``signature``; None if it is
+    missing, unreadable or stale."""
+    try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("signature") == signature:
-            return data
-    return None
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) and data.get("signature") == signature else None
 
 
 def run_column(scene, column: Column, motion, truth) -> dict:
@@ -297,7 +299,7 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
     if data is None:
         motion = motion_for(scene, column.motion_source, motions, seconds)
         data = run_column(scene, column, motion, truth) | {"signature": signature}
-        path.write_text(json.dumps(data, indent=1), encoding="utf-8")
+        atomic_write_text(path, json.dumps(data, indent=1))
         name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
         _log(f"{name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
     return data
@@ -335,7 +337,7 @@ def run_scene(task) -> dict:
             motion = motion_for(scene, source, motion_cache, motion_seconds)
             data = frame_features(scene, motion, source, blurred)
             data["signature"] = signature
-            path.write_text(json.dumps(data, indent=1), encoding="utf-8")
+            atomic_write_text(path, json.dumps(data, indent=1))
         features[source] = {k: v for k, v in data.items() if k != "signature"}
     return {
         "scene": root.name,
