@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import calibrate_defaults as protocol  # noqa: E402
 from study_alpha_choice import GRID, HANDLINGS, SOURCES  # noqa: E402
 
-from stereodeblur.pipeline.alpha import warp_to_other  # noqa: E402
+from stereodeblur.pipeline.alpha import candidates, choose, searched, warp_to_other  # noqa: E402
 
 PAPER_INDEX = GRID.index(1e-3)
 
@@ -70,18 +70,20 @@ def discrepancy(d: dict, *, keep: str = "0.9") -> int:
 
 
 def held_out(d: dict, *, keep: str = "0.9") -> int:
-    """``alpha='held-out'``: from the ``'auto'`` alpha up the grid alphas above it while
-    the prediction error of the right view falls (index ``len(GRID)`` is ``'auto'``). The
-    study has the costs at the grid alphas only; the cost at ``'auto'`` is interpolated in
-    log alpha (the pipeline computes it)."""
+    """``alpha='held-out'`` (:mod:`stereodeblur.pipeline.alpha`) on the right view's
+    prediction errors (index ``len(GRID)`` is ``'auto'``). The study has the errors at the
+    grid alphas only; the one at ``'auto'`` is interpolated in log alpha (the pipeline
+    computes it)."""
     costs = np.log(d["cross"]["left_to_right"][keep])
     auto = float(d["alphas"][len(GRID)])
-    chosen = [len(GRID)] + [i for i, a in enumerate(GRID) if a > auto]
-    path = [np.interp(np.log10(auto), np.log10(GRID), costs)] + [costs[i] for i in chosen[1:]]
-    k = 0
-    while k + 1 < len(path) and path[k + 1] < path[k]:
-        k += 1
-    return chosen[k]
+    indices = [len(GRID)] + [GRID.index(a) for a in candidates("held-out", auto)[1:]]
+    at_auto = np.interp(np.log10(auto), np.log10(GRID), costs)
+    errors = []
+    for i in indices:
+        errors.append(at_auto if i == len(GRID) else costs[i])
+        if searched("held-out", errors):
+            break
+    return indices[choose(errors, "held-out")]
 
 
 RULES = {

@@ -167,13 +167,14 @@ def test_held_out_is_auto_where_the_other_view_is_observed(scene):
 
 
 def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
+    from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
     auto = deblur_stereo_frame(
         scene, 1, settings=DeblurSettings(**FAST, motion_source="gt", alpha="auto")
     ).frames["left"]
     grid = tuple(auto.alpha * k for k in (2, 4, 8, 16, 32))  # five candidates above 'auto'
-    monkeypatch.setattr(frame_module, "CROSS_VIEW_ALPHAS", grid)
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
     errors = iter([3.0, 2.0, 2.5, 1.0, 0.5, 0.1])  # a later, lower minimum is not searched
     calls = []
 

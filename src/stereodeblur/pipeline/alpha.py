@@ -25,7 +25,7 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from ..errors import InputError
-from ..settings import CROSS_VIEW_KEEP, CROSS_VIEW_STEP
+from ..settings import CROSS_VIEW_ALPHAS, CROSS_VIEW_KEEP, CROSS_VIEW_STEP
 
 
 @dataclass(frozen=True)
@@ -95,7 +95,24 @@ def trimmed_error(predicted, observed, *, border: int, keep: float = CROSS_VIEW_
     return float(error[: max(1, int(keep * error.size))].mean())
 
 
-def choose(errors) -> int:
-    """Index of the chosen alpha: :data:`CROSS_VIEW_STEP` above the best predictor, within
-    the grid."""
-    return min(int(np.argmin(errors)) + CROSS_VIEW_STEP, len(errors) - 1)
+def candidates(rule: str, floor: float) -> tuple[float, ...]:
+    """The alphas ``rule`` solves at, in this order: for ``'cross-view'`` the grid
+    :data:`~stereodeblur.settings.CROSS_VIEW_ALPHAS`; for ``'held-out'`` ``floor`` (the
+    ``'auto'`` alpha) and the grid alphas above it."""
+    if rule == "held-out":
+        return (floor, *(a for a in CROSS_VIEW_ALPHAS if a > floor))
+    return CROSS_VIEW_ALPHAS
+
+
+def searched(rule: str, errors) -> bool:
+    """Whether ``rule`` needs no further candidate after these prediction errors:
+    ``'held-out'`` stops once the error rises (on the 40 training scenes every error curve
+    had one minimum)."""
+    return rule == "held-out" and len(errors) > 1 and errors[-1] >= errors[-2]
+
+
+def choose(errors, rule: str = "cross-view") -> int:
+    """Index of the chosen alpha among the candidates solved: for ``'held-out'`` the best
+    predictor, for ``'cross-view'`` :data:`CROSS_VIEW_STEP` above it, within the grid."""
+    best = int(np.argmin(errors))
+    return best if rule == "held-out" else min(best + CROSS_VIEW_STEP, len(errors) - 1)

@@ -18,7 +18,7 @@ from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
 from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
-from .alpha import OtherView, choose, other_view, prediction_error
+from .alpha import OtherView, candidates, choose, other_view, prediction_error, searched
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import NamedObservation, view_observations
 from .operator import view_operator
@@ -208,21 +208,15 @@ def deblur_view(
 def _alpha_choice_solve(
     scene, window, view, blurred, operator, settings, other, weights, observations, progress
 ):
-    """Solve at each candidate alpha and keep the one chosen by predicting ``other``
-    (:mod:`.alpha`): for ``'cross-view'`` every alpha of :data:`CROSS_VIEW_ALPHAS`, one step
-    above the best predictor; for ``'held-out'`` the ``'auto'`` alpha and those of the grid
-    above it, in increasing order until the prediction error stops falling (on the 40
-    training scenes every error curve had one minimum), the best predictor. Returns its
-    data terms and result."""
-    held_out = settings.alpha == "held-out"
-    fixed = replace(settings, alpha="auto" if held_out else CROSS_VIEW_ALPHAS[0])
+    """Solve at the candidate alphas of ``settings.alpha`` and keep the one chosen by
+    predicting ``other`` (:func:`.alpha.candidates`, :func:`.alpha.searched`,
+    :func:`.alpha.choose`). Returns its data terms and result."""
+    rule = settings.alpha
+    fixed = replace(settings, alpha="auto" if rule == "held-out" else CROSS_VIEW_ALPHAS[0])
     base = data_terms(scene, window, view, operator, fixed)
-    candidates = CROSS_VIEW_ALPHAS
-    if held_out:
-        candidates = (base.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > base.alpha))
     border = border_for(blurred.shape[1])
     runs, errors = [], []
-    for alpha in candidates:
+    for alpha in candidates(rule, base.alpha):
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
         result = solve(
@@ -236,9 +230,9 @@ def _alpha_choice_solve(
         )
         errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
         runs.append((terms, result))
-        if held_out and len(errors) > 1 and errors[-1] >= errors[-2]:
+        if searched(rule, errors):
             break
-    return runs[int(np.argmin(errors)) if held_out else choose(errors)]
+    return runs[choose(errors, rule)]
 
 
 def needs_stereo_pass(settings: DeblurSettings) -> bool:
