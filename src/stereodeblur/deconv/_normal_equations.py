@@ -126,51 +126,69 @@ def _gram(operator, p3, squared, unit, shape):
     return _adjoint(operator, ap, shape)
 
 
-class _Extra:
-    """A further observation in the normal equations (its checked ``(H * W, C)`` image ``b3``
-    and ``(H, W)`` weights), with its robust weights.
-
-    ``squared`` is ``w^2 / (1 + (r / scale)^2)`` after :meth:`reweight` (``r``: the RMS over
-    channels of ``B_k - A_k I``), ``w^2`` before.
-    """
+class _DataTerm:
+    """One data term ``sum_x || w(x) (B(x) - A_x I) ||^2``: its operator, checked ``(H * W, C)``
+    image ``b3``, squared weights and the residual ``B - A I`` of the last :meth:`data_term`."""
 
     def __init__(self, operator, b3, weights, shape):
         self.operator, self.shape, self.b3 = operator, shape, b3
-        self.base = weights * weights
-        self.squared = self.base.copy()
-        self.residual = np.empty_like(self.b3)
+        self.residual = np.empty_like(b3)
         self.partial = np.empty((shape[0], 1), np.float64)
+        self.set_squared(weights * weights)
+
+    def set_squared(self, squared) -> None:
+        self.squared = np.ascontiguousarray(squared, dtype=np.float32)
+        self.unit = bool(np.all(self.squared == 1))
 
     def rhs(self):
+        """``A^T W^2 B``."""
         weighted = self.b3.copy()
         _scale_pixels(weighted, self.squared)
         return _adjoint(self.operator, weighted, self.shape)
 
+    def gram(self, p3):
+        """``A^T W^2 A p``."""
+        return _as_3d(np.asarray(_gram(self.operator, p3, self.squared, self.unit, self.shape)))
+
     def data_term(self, estimate3d) -> float:
+        """``sum w^2 |B - A I|^2``; keeps ``B - A I`` in ``residual``."""
         reblurred = np.ascontiguousarray(_forward(self.operator, estimate3d, self.shape))
         _residual(self.b3, reblurred, self.squared, self.residual, self.partial)
         return float(self.partial.sum())
 
     def start_residual(self):
-        weighted = self.residual.copy()
-        _scale_pixels(weighted, self.squared)
-        return _adjoint(self.operator, weighted, self.shape)
+        """``A^T W^2 (B - A I)`` from ``residual``, which it overwrites (scaled by ``W^2``)."""
+        if not self.unit:
+            _scale_pixels(self.residual, self.squared)
+        return _adjoint(self.operator, self.residual, self.shape)
+
+
+class _Extra(_DataTerm):
+    """A further observation's data term, with its robust weights: ``squared`` is
+    ``w^2 / (1 + (r / scale)^2)`` after :meth:`reweight` (``r``: the RMS over channels of
+    ``B_k - A_k I``), ``w^2`` before."""
+
+    def __init__(self, operator, b3, weights, shape):
+        super().__init__(operator, b3, weights, shape)
+        self.base = self.squared.copy()
 
     def reweight(self, scale: float) -> None:
         r2 = np.mean(self.residual.astype(np.float64) ** 2, axis=2)
-        self.squared = (self.base / (1.0 + r2 / scale**2)).astype(np.float32)
+        self.set_squared(self.base / (1.0 + r2 / scale**2))
 
 
 class _NormalEquations:
     """The data and prior terms of Eq. 6 and the IRLS normal equations of Eq. 8.
 
-    Holds the blurred frame ``B`` (float32, ``(H, W, C)``), the operator, the current data
-    weights (:meth:`set_weights`) and prior weights (:meth:`prior_term`), and the residual
-    ``B - A I`` of the last :meth:`data_term` call.
+    Holds the view's data term (``own``, on the blurred frame ``B``, float32 ``(H, W, C)``),
+    the further observations' (``extras``), the current data weights (:meth:`set_weights`)
+    and prior weights (:meth:`prior_term`); ``residual`` is ``B - A I`` of the last
+    :meth:`data_term` call.
     """
 
     def __init__(self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=()):
-        self.b3, self.shape, self.operator = blurred3, shape, operator
+        self.b3, self.shape = blurred3, shape
+        self.own = _DataTerm(operator, blurred3, np.ones(shape[:2], np.float32), shape)
         self.extras = list(extras)
         self.alpha, self.exponent, self.epsilon = float(alpha), float(exponent), float(epsilon)
         self.beta3 = None
@@ -179,26 +197,20 @@ class _NormalEquations:
             self.anchored = np.empty_like(blurred3)  # beta * p, reused by every CG step
         self.wx = np.empty_like(blurred3)
         self.wy = np.empty_like(blurred3)
-        self.residual = np.empty_like(blurred3)
         rows, channels = blurred3.shape[0], blurred3.shape[2]
         self.partial = np.empty((rows, 1), np.float64)
         self.channel_partial = np.empty((rows, channels), np.float64)
 
-    def forward(self, image3d):
-        return _forward(self.operator, image3d, self.shape)
-
-    def adjoint(self, image3d):
-        return _adjoint(self.operator, image3d, self.shape)
+    @property
+    def residual(self):
+        return self.own.residual
 
     def set_weights(self, w) -> None:
         """Data weights ``w``: ``W^2``, the right-hand side ``A^T W^2 B (+ sum_k A_k^T W_k^2 B_k
         + beta B)`` with the observations' current weights, and its norm."""
         self.w = w
-        self.squared = np.ascontiguousarray(w * w, dtype=np.float32)
-        self.unit_weights = bool(np.all(self.squared == 1))
-        weighted_b = self.b3.copy()
-        _scale_pixels(weighted_b, self.squared)
-        self.rhs = np.array(self.adjoint(weighted_b), dtype=np.float32, order="C")
+        self.own.set_squared(w * w)
+        self.rhs = np.array(self.own.rhs(), dtype=np.float32, order="C")
         for extra in self.extras:
             self.rhs += extra.rhs()
         if self.beta3 is not None:
@@ -209,10 +221,9 @@ class _NormalEquations:
     def apply(self, p3, row_dots):
         """``(A^T W^2 A + sum_k A_k^T W_k^2 A_k + D^T rho D + beta) p``; the row sums of
         ``p * (that)`` to ``row_dots``."""
-        q = _gram(self.operator, p3, self.squared, self.unit_weights, self.shape)
-        q = _owned(_as_3d(np.asarray(q)), p3)
+        q = _owned(self.own.gram(p3), p3)
         for extra in self.extras:
-            q += _as_3d(np.asarray(_gram(extra.operator, p3, extra.squared, False, self.shape)))
+            q += extra.gram(p3)
         if self.beta3 is not None:
             np.multiply(self.beta3, p3, out=self.anchored)
             q += self.anchored
@@ -220,10 +231,8 @@ class _NormalEquations:
         return q
 
     def data_term(self, estimate3d) -> float:
-        """``sum w^2 |B - A I|^2 (+ sum beta |I - B|^2)``; keeps ``B - A I`` in ``residual``."""
-        reblurred = np.ascontiguousarray(self.forward(estimate3d))
-        _residual(self.b3, reblurred, self.squared, self.residual, self.partial)
-        data = float(self.partial.sum())
+        """``sum w^2 |B - A I|^2`` over the data terms (``+ sum beta |I - B|^2``)."""
+        data = self.own.data_term(estimate3d)
         data += sum(extra.data_term(estimate3d) for extra in self.extras)
         if self.beta3 is not None:
             difference = (estimate3d - self.b3) ** 2
@@ -238,13 +247,9 @@ class _NormalEquations:
         return 2.0 * self.alpha / self.exponent * float(self.partial.sum())
 
     def start_residual(self, estimate3d):
-        """``b - M I = A^T W^2 (B - A I) - D^T rho D I (+ beta (B - I))``, from ``residual``.
-
-        Overwrites ``residual`` (scaled by ``W^2``).
-        """
-        if not self.unit_weights:
-            _scale_pixels(self.residual, self.squared)
-        start = np.array(self.adjoint(self.residual), dtype=np.float32, order="C")
+        """``b - M I = sum A^T W^2 (B - A I) - D^T rho D I (+ beta (B - I))``, from the data
+        terms' residuals (which it overwrites)."""
+        start = np.array(self.own.start_residual(), dtype=np.float32, order="C")
         for extra in self.extras:
             start += extra.start_residual()
         correction = np.zeros_like(start)
