@@ -6,6 +6,7 @@ Run from the repository root::
     python benchmarks/bench_stereo_frame.py --scene squares --repeats 5 --json out.json
     python benchmarks/bench_stereo_frame.py --alpha cross-view   # a setting other than the default
     python benchmarks/bench_stereo_frame.py --observations all --irls 6 --cg 10
+    python benchmarks/bench_stereo_frame.py --interpolation cubic
 
 An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. A
 warm-up process on a 64x48 rendering of the same scene compiles the numba kernels into
@@ -119,13 +120,14 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="also write the result here")
     parser.add_argument("--alpha", help="--alpha of the run (default: the settings' default)")
     parser.add_argument("--observations", help="--observations of the run (default: the default)")
+    parser.add_argument("--interpolation", help="--interpolation of the run (default: the default)")
     parser.add_argument("--num_irls", "--irls", dest="num_irls", type=int, help="IRLS iterations")
     parser.add_argument("--num_cg", "--cg", dest="num_cg", type=int, help="CG steps per iteration")
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     options = {
         name: getattr(args, name)
-        for name in ("alpha", "observations", "num_irls", "num_cg")
+        for name in ("alpha", "observations", "interpolation", "num_irls", "num_cg")
         if getattr(args, name) is not None
     }
     if args.child:

@@ -83,12 +83,14 @@ CANDIDATES = {
     "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
     "observations": {"observations": "all", "alpha": "auto"},
     "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG, "alpha": "auto"},
+    "cubic": {"interpolation": "cubic"},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
 ``observations`` issue 13's further observations, ``iterations-10x25`` the paper's iteration
-counts (the default until stop 22; ``benchmarks/study_iterations.py``); all but the
-cross-view ones with the noise rule, as they were measured."""
+counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` the
+homography kernels' cubic interpolation; all but the cross-view ones and ``cubic`` with the
+noise rule, as they were measured."""
 
 
 @dataclass(frozen=True)
@@ -173,8 +175,10 @@ def _log(message: str) -> None:
 
 def _signature(settings) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
-    ``'single'``, so results from before that option stay valid)."""
-    return repr(settings).replace(", observations='single'", "")
+    ``'single'``, ``interpolation`` only when not ``'bilinear'``, so results from before those
+    options stay valid)."""
+    text = repr(settings).replace(", observations='single'", "")
+    return text.replace(", interpolation='bilinear'", "")
 
 
 def _cached(path: Path, signature: str) -> dict | None:

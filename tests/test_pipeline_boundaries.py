@@ -107,6 +107,24 @@ def test_adaptive_takes_the_blur_near_motion_boundaries_from_the_dense_flow(scen
     assert not np.array_equal(merged, homographies)
 
 
+def test_cubic_interpolation_reaches_both_kinds_of_rows(scene):
+    settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow", "interpolation": "cubic"})
+    motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
+    exposure = scene.info.exposure
+    hybrid, band = boundary_motion(motion, exposure.duty_cycle)
+    merged = build_operator(hybrid, exposure, settings, flow_rows=band).matrix
+    cubic = build_operator(motion, exposure, settings).matrix
+    bilinear = build_operator(motion, exposure, DeblurSettings(**FAST)).matrix
+    assert (cubic.data < 0).any() and (bilinear.data >= 0).all()
+    assert cubic.nnz > 1.5 * bilinear.nnz
+    flow_kernels = DeblurSettings(**{**FAST, "kernels": "displacement", "interpolation": "cubic"})
+    displacements = build_operator(hybrid, exposure, flow_kernels).matrix
+    rows = band.ravel()
+    np.testing.assert_array_equal(merged[~rows].toarray(), cubic[~rows].toarray())
+    np.testing.assert_array_equal(merged[rows].toarray(), displacements[rows].toarray())
+    assert (displacements.data < 0).any()
+
+
 def _spy(monkeypatch, module, function: str, keyword: str) -> list:
     """Record the ``keyword`` argument of every call of ``module.<function>``."""
     seen = []

@@ -48,6 +48,7 @@ __all__ = [
 ]
 
 KERNELS = ("homography", "displacement")
+INTERPOLATIONS = ("bilinear", "cubic")
 MOTION_SOURCES = ("gt", "sceneflow", "initial-flow")
 BOUNDARY_WEIGHTS = ("adaptive", "gated", "paper", "none")
 BOUNDARY_MASKS = (None, "gt")
@@ -68,6 +69,8 @@ NUM_IRLS = 4
 NUM_CG = 25
 # The paper's kernels (Eq. 3-4); README.md "Paper Tables 3 and 4": '3D homographies' and 'ours'.
 DEFAULT_KERNELS = "homography"
+# The paper's bilinear sampling until measured otherwise (README.md "Cubic interpolation").
+DEFAULT_INTERPOLATION = "bilinear"
 # Estimated from the blurred stereo frames: every input has them, only rendered scenes have gt
 # (the CLI's default; README.md "Paper Tables 3 and 4" measures ours with it).
 DEFAULT_MOTION_SOURCE = "sceneflow"
@@ -156,6 +159,11 @@ class DeblurSettings:
     kernels : {'homography', 'displacement'}
         Blur kernels from plane-induced homographies (paper Eq. 3-4) or from straight
         2D displacements (Kim and Lee 2015).
+    interpolation : {'bilinear', 'cubic'}
+        How the blur kernels sample the sharp image (homography kernels) or splat it
+        (displacement kernels): bilinearly (the paper) or by Keys' cubic convolution
+        (:mod:`stereodeblur.blur.trajectories`), which smooths it less and gives the
+        operator about 2.5x the entries.
     motion_source : {'sceneflow', 'gt', 'initial-flow'}
         ``'sceneflow'`` (default): estimated from the blurred stereo frames; ``'gt'``:
         fitted to the scene's ground truth; ``'initial-flow'``: the monocular dense optical
@@ -215,6 +223,7 @@ class DeblurSettings:
     """
 
     kernels: str = DEFAULT_KERNELS
+    interpolation: str = DEFAULT_INTERPOLATION
     motion_source: str = DEFAULT_MOTION_SOURCE
     num_samples: int = NUM_SAMPLES
     alpha: float | str = DEFAULT_ALPHA
@@ -230,6 +239,12 @@ class DeblurSettings:
     def __post_init__(self):
         if self.kernels not in KERNELS:
             raise InputError(f"kernels must be one of {', '.join(KERNELS)}, got {self.kernels!r}")
+        if self.interpolation not in INTERPOLATIONS:
+            raise InputError(
+                f"interpolation must be one of {', '.join(INTERPOLATIONS)}, "
+                f"got {self.interpolation!r}",
+                parameter="interpolation",
+            )
         if self.motion_source not in MOTION_SOURCES:
             raise InputError(
                 f"motion source must be one of {', '.join(MOTION_SOURCES)}, "

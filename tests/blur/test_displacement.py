@@ -17,12 +17,16 @@ from .scenes import EXPOSURE, smooth_flow, translation_sceneflow
 SHAPE = (40, 56)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_sparse_equals_numpy_reference(seed):
+@pytest.mark.parametrize(
+    ("seed", "interpolation"), [(0, "bilinear"), (1, "bilinear"), (2, "bilinear"), (3, "cubic")]
+)
+def test_sparse_equals_numpy_reference(seed, interpolation):
     forward = smooth_flow(SHAPE, seed, amplitude=10.0)
     backward = smooth_flow(SHAPE, seed + 50, amplitude=10.0)
-    fast = displacement_blur(forward, backward, EXPOSURE).matrix
-    slow = displacement_blur_reference(forward, backward, EXPOSURE).matrix
+    fast = displacement_blur(forward, backward, EXPOSURE, interpolation=interpolation).matrix
+    slow = displacement_blur_reference(
+        forward, backward, EXPOSURE, interpolation=interpolation
+    ).matrix
     np.testing.assert_array_equal(fast.indptr, slow.indptr)
     np.testing.assert_array_equal(fast.indices, slow.indices)
     np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)
@@ -69,6 +73,21 @@ def test_constant_flow_equals_homography_of_translation():
     interior = (y >= reach) & (y < SHAPE[0] - reach) & (x >= reach) & (x < SHAPE[1] - reach)
     assert diff[interior].max() < 1e-6
     assert diff.max() < 1e-6  # the shared border rule makes the border rows agree too
+
+
+def test_cubic_constant_flow_equals_cubic_homography_of_translation():
+    """Cubic splats of a translation are the cubic gather's taps, away from the border."""
+    depth, velocity = 3.0, (0.25, -0.2)
+    scene = translation_sceneflow(SHAPE, velocity, depth)
+    focal = scene.camera.K[[0, 1], [0, 1]]
+    flow = np.broadcast_to(focal * np.asarray(velocity) / depth, SHAPE + (2,))
+    disp = displacement_blur(flow, -flow, EXPOSURE, interpolation="cubic").matrix
+    hom = homography_blur(scene, EXPOSURE, interpolation="cubic").matrix
+    reach = int(np.ceil(EXPOSURE.duty_cycle / 2 * np.abs(flow[0, 0]).max())) + 3
+    y, x = np.divmod(np.arange(disp.shape[0]), SHAPE[1])
+    interior = (y >= reach) & (y < SHAPE[0] - reach) & (x >= reach) & (x < SHAPE[1] - reach)
+    assert abs(disp - hom)[interior].max() < 1e-5
+    assert (disp.data < 0).any()
 
 
 def test_backward_flow_is_used_before_the_frame_centre():

@@ -106,3 +106,64 @@ def test_bad_num_samples(num_samples):
     scene = random_sceneflow(SHAPE, 0)
     with pytest.raises(ValueError, match="num_samples"):
         homography_blur(scene, EXPOSURE, num_samples=num_samples)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_cubic_sparse_equals_numpy_reference(seed):
+    scene = random_sceneflow(SHAPE, seed, grid=(3, 4), speed=2.0)
+    fast = homography_blur(scene, EXPOSURE, interpolation="cubic").matrix
+    slow = homography_blur_reference(scene, EXPOSURE, interpolation="cubic").matrix
+    np.testing.assert_array_equal(fast.indptr, slow.indptr)
+    np.testing.assert_array_equal(fast.indices, slow.indices)
+    np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(fast.sum(axis=1), 1.0, atol=1e-5)
+    assert fast.nnz > 1.5 * homography_blur(scene, EXPOSURE).matrix.nnz
+
+
+def test_cubic_huge_blur_takes_the_sorted_path():
+    """Trajectories whose bounding box exceeds the accumulator: the sorted fallback."""
+    scene = random_sceneflow((300, 320), 3, grid=(1, 1), speed=400.0)
+    fast = homography_blur(scene, EXPOSURE, num_samples=7, interpolation="cubic").matrix
+    slow = homography_blur_reference(scene, EXPOSURE, num_samples=7, interpolation="cubic").matrix
+    assert abs(fast - slow).max() < 1e-6
+
+
+@pytest.mark.parametrize("velocity", [(0.3, 0.0), (0.2, -0.25)])
+def test_cubic_fronto_parallel_translation_matches_cubic_convolution(velocity):
+    """Cubic kernels interpolate like Keys' cubic convolution of the shifted image."""
+    from stereodeblur.blur.trajectories import keys_weights
+
+    scene = translation_sceneflow(SHAPE, velocity, 3.0)
+    num_samples = 15
+    op = homography_blur(scene, EXPOSURE, num_samples=num_samples, interpolation="cubic")
+    image = np.random.default_rng(0).random(SHAPE)
+    focal = scene.camera.K[[0, 1], [0, 1]]
+    padded = np.pad(image, 2, mode="edge")
+    expected = np.zeros(SHAPE)
+    for s in EXPOSURE.sample_fractions(num_samples):
+        dx, dy = s * focal * np.asarray(velocity) / 3.0  # content moves by (dx, dy)
+        ix, fx = int(np.floor(-dx)), -dx - np.floor(-dx)
+        iy, fy = int(np.floor(-dy)), -dy - np.floor(-dy)
+        for ty in range(-1, 3):
+            for tx in range(-1, 3):
+                w = keys_weights(np.array(fy - ty)) * keys_weights(np.array(fx - tx))
+                rows = np.clip(np.arange(SHAPE[0]) + iy + ty, -2, SHAPE[0] + 1) + 2
+                cols = np.clip(np.arange(SHAPE[1]) + ix + tx, -2, SHAPE[1] + 1) + 2
+                expected += w * padded[np.ix_(rows, cols)]
+    expected /= num_samples
+    reach = int(np.ceil(EXPOSURE.duty_cycle / 2 * np.abs(focal * velocity / 3.0).max())) + 3
+    inner = (slice(reach, -reach), slice(reach, -reach))
+    np.testing.assert_allclose(op.forward(image)[inner], expected[inner], atol=2e-5)
+
+
+def test_bad_interpolation():
+    with pytest.raises(ValueError, match="interpolation"):
+        homography_blur(random_sceneflow(SHAPE, 0), EXPOSURE, interpolation="nearest")
+
+
+def test_cubic_operator_passes_the_dot_test():
+    from stereodeblur.blur.operator import dot_test
+
+    op = homography_blur(random_sceneflow(SHAPE, 2, speed=2.0), EXPOSURE, interpolation="cubic")
+    assert (op.matrix.data < 0).any()  # Keys' lobes
+    assert dot_test(op, SHAPE + (3,), seed=1) < 1e-6

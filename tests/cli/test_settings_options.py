@@ -26,6 +26,12 @@ def test_every_bench_column_is_reachable_from_the_command_line(column):
     assert _parse(*arguments_for(settings)) == settings
 
 
+def test_interpolation_option_round_trips():
+    settings = _parse("--interpolation", "cubic")
+    assert settings == DeblurSettings(interpolation="cubic")
+    assert _parse(*arguments_for(settings)) == settings
+
+
 def test_bench_paper_takes_the_same_options():
     args = build_parser().parse_args(["bench", "paper", "--samples", "9", "--irls", "3"])
     settings = settings_from_arguments(args)

@@ -32,6 +32,7 @@ def test_num_segments_overrides_the_estimators():
     ("field", "value", "message"),
     [
         ("kernels", "gauss", "kernels"),
+        ("interpolation", "lanczos", "interpolation must be one of bilinear, cubic"),
         ("motion_source", "guess", "motion source"),
         ("num_samples", 0, "num_samples"),
         ("num_irls", 1.5, "num_irls"),

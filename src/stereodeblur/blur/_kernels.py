@@ -1,11 +1,12 @@
 """Numba kernels that assemble blur matrices and apply them (the hot path).
 
-All sampling rules (positions, bilinear taps, snapping, the border rule) come
+All sampling rules (positions, bilinear and cubic taps, snapping, the border rule) come
 from :mod:`.trajectories`; this module only accumulates and stores them.
 
 Assembly works item by item: an item is a blurred pixel (homography, gather) or
 a source pixel of the extended grid (displacement, splat). Every item's
-``num_samples`` positions give at most ``4 * num_samples`` taps, which are
+``num_samples`` positions give at most ``4 * num_samples`` taps (``16 * num_samples``
+cubic ones), which are
 summed per target pixel in a small dense accumulator over the taps' bounding
 box and emitted in increasing target order. Indices are int32, values float32.
 
@@ -25,7 +26,13 @@ import numpy as np
 from numba import njit
 
 from .._threads import balanced_ranges, run_ranges
-from .trajectories import clamp, displacement_point, homography_point, split_coordinate
+from .trajectories import (
+    clamp,
+    displacement_point,
+    homography_point,
+    keys_weight,
+    split_coordinate,
+)
 
 _ACCUMULATOR_CELLS = 1 << 16
 """Bounding boxes larger than this (in pixels) fall back to sorting the taps."""
@@ -192,6 +199,108 @@ def _merge_taps_sorted(px, py, n, drop_outside, height, width, divisor, out_idx,
 
 
 @njit(**_JIT)
+def _cubic_tap(t, size, drop_outside):
+    """Tap coordinate ``t`` clamped to ``[0, size)``, or -1 if splatting drops it."""
+    if 0 <= t < size:
+        return t
+    if drop_outside:
+        return -1
+    return min(max(t, 0), size - 1)
+
+
+@njit(**_JIT)
+def _merge_cubic_taps(
+    px, py, n, drop_outside, height, width, divisor, acc, mark, out_idx, out_val, out_pos
+):
+    """:func:`_merge_taps` with Keys' cubic taps: clamped to the image when gathering,
+    dropped outside it when splatting.
+
+    The weights can be negative, so the accumulator's touched cells are marked (and the
+    marks cleared again when emitted); a tap sum of exactly zero is dropped.
+    """
+    # Taps of a position p lie in [floor(p) - 1, floor(p) + 2]; those in the image count.
+    bx0 = max(np.int64(np.floor(px[:n].min())) - 1, 0)
+    bx1 = min(np.int64(np.floor(px[:n].max())) + 2, width - 1)
+    by0 = max(np.int64(np.floor(py[:n].min())) - 1, 0)
+    by1 = min(np.int64(np.floor(py[:n].max())) + 2, height - 1)
+    if bx1 < bx0 or by1 < by0:
+        return 0
+    bw = bx1 - bx0 + 1
+    area = bw * (by1 - by0 + 1)
+    if area > acc.size:
+        return _merge_cubic_taps_sorted(
+            px, py, n, drop_outside, height, width, divisor, out_idx, out_val, out_pos
+        )
+    for k in range(n):
+        x0, fx = split_coordinate(px[k])
+        y0, fy = split_coordinate(py[k])
+        for dy in range(-1, 3):
+            wy = keys_weight(fy - dy)
+            ty = _cubic_tap(y0 + dy, height, drop_outside)
+            if wy == 0.0 or ty < 0:
+                continue
+            row = (ty - by0) * bw - bx0
+            for dx in range(-1, 3):
+                w = wy * keys_weight(fx - dx)
+                tx = _cubic_tap(x0 + dx, width, drop_outside)
+                if w == 0.0 or tx < 0:
+                    continue
+                local = row + tx
+                if mark[local] == 0:
+                    mark[local] = 1
+                    acc[local] = w
+                else:
+                    acc[local] += w
+    count = 0
+    for local in range(area):
+        if mark[local] == 0:
+            continue
+        mark[local] = 0
+        if acc[local] != 0.0:
+            out_idx[out_pos + count] = (by0 + local // bw) * width + bx0 + local % bw
+            out_val[out_pos + count] = acc[local] / divisor
+            count += 1
+    return count
+
+
+@njit(**_JIT)
+def _merge_cubic_taps_sorted(
+    px, py, n, drop_outside, height, width, divisor, out_idx, out_val, out_pos
+):
+    """Fallback of :func:`_merge_cubic_taps` for huge bounding boxes: sort all taps."""
+    idx = np.empty(16 * n, np.int64)
+    val = np.empty(16 * n, np.float64)
+    m = 0
+    for k in range(n):
+        x0, fx = split_coordinate(px[k])
+        y0, fy = split_coordinate(py[k])
+        for dy in range(-1, 3):
+            wy = keys_weight(fy - dy)
+            ty = _cubic_tap(y0 + dy, height, drop_outside)
+            for dx in range(-1, 3):
+                w = wy * keys_weight(fx - dx)
+                tx = _cubic_tap(x0 + dx, width, drop_outside)
+                if w != 0.0 and tx >= 0 and ty >= 0:
+                    idx[m] = ty * width + tx
+                    val[m] = w
+                    m += 1
+    order = np.argsort(idx[:m], kind="mergesort")
+    count = 0
+    i = 0
+    while i < m:
+        g = idx[order[i]]
+        total = 0.0
+        while i < m and idx[order[i]] == g:
+            total += val[order[i]]
+            i += 1
+        if total != 0.0:
+            out_idx[out_pos + count] = g
+            out_val[out_pos + count] = total / divisor
+            count += 1
+    return count
+
+
+@njit(**_JIT)
 def _item_positions(
     kind, item, px, py, homographies, labels, visible, item_x, item_y, item_src, flows, fractions
 ):
@@ -245,16 +354,18 @@ def _grow(out_idx, out_val, pos, needed):
 
 
 @njit(**_JIT)
-def _reaches(px, py, n, table, height, width):
+def _reaches(px, py, n, table, height, width, cubic):
     """Whether a tap of the ``n`` positions can fall on a pixel counted in ``table``.
 
     ``table`` is the summed-area table ``(H + 1, W + 1)`` of the pixels wanted; taps of a
-    position ``p`` lie in ``[floor(p), floor(p) + 1]`` (as in :func:`_merge_taps`).
+    position ``p`` lie in ``[floor(p), floor(p) + 1]`` (as in :func:`_merge_taps`), cubic
+    ones in ``[floor(p) - 1, floor(p) + 2]``.
     """
-    bx0 = max(np.int64(np.floor(px[:n].min())), 0)
-    bx1 = min(np.int64(np.floor(px[:n].max())) + 1, width - 1)
-    by0 = max(np.int64(np.floor(py[:n].min())), 0)
-    by1 = min(np.int64(np.floor(py[:n].max())) + 1, height - 1)
+    low, high = (1, 2) if cubic else (0, 1)
+    bx0 = max(np.int64(np.floor(px[:n].min())) - low, 0)
+    bx1 = min(np.int64(np.floor(px[:n].max())) + high, width - 1)
+    by0 = max(np.int64(np.floor(py[:n].min())) - low, 0)
+    by1 = min(np.int64(np.floor(py[:n].max())) + high, height - 1)
     if bx0 > bx1 or by0 > by1:
         return False
     inside = table[by1 + 1, bx1 + 1] - table[by0, bx1 + 1] - table[by1 + 1, bx0] + table[by0, bx0]
@@ -275,8 +386,11 @@ def _assemble_range(
     flows,
     fractions,
     select,
+    cubic,
 ):
     """Taps of items ``first .. last - 1``: ``(counts int64, indices int32, values float32)``.
+
+    ``cubic``: Keys' cubic taps instead of bilinear ones.
 
     ``select = (take, other_indptr, other_indices, other_values, table)``: items with
     ``take[item]`` copy row ``item`` of the other CSR matrix instead of computing theirs;
@@ -310,7 +424,7 @@ def _assemble_range(
             counts[item - first] = c
             pos += c
             continue
-        out_idx, out_val = _grow(out_idx, out_val, pos, 4 * n)
+        out_idx, out_val = _grow(out_idx, out_val, pos, (16 if cubic else 4) * n)
         _item_positions(
             kind,
             item,
@@ -325,8 +439,15 @@ def _assemble_range(
             flows,
             fractions,
         )
-        if restricted and not _reaches(px, py, n, table, height, width):
+        if restricted and not _reaches(px, py, n, table, height, width, cubic):
             counts[item - first] = 0
+            continue
+        if cubic:
+            c = _merge_cubic_taps(
+                px, py, n, drop_outside, height, width, divisor, acc, mark, out_idx, out_val, pos
+            )
+            counts[item - first] = c
+            pos += c
             continue
         c = _merge_taps(
             px,
@@ -369,6 +490,7 @@ def _assemble(
     flows,
     fractions,
     select=_SELECT_ALL,
+    cubic=False,
 ):
     """CSR arrays ``(indptr int64, indices int32, values float32)`` of all items' taps."""
     parts = run_ranges(
@@ -384,6 +506,7 @@ def _assemble(
         flows,
         fractions,
         select,
+        cubic,
     )
     indptr = np.zeros(num_items + 1, np.int64)
     np.cumsum(np.concatenate([p[0] for p in parts]), out=indptr[1:])
@@ -401,10 +524,17 @@ def _assemble(
 
 
 def assemble_homography(
-    homographies: np.ndarray, labels: np.ndarray, num_samples: int, visible=None, substitute=None
+    homographies: np.ndarray,
+    labels: np.ndarray,
+    num_samples: int,
+    visible=None,
+    substitute=None,
+    *,
+    cubic: bool = False,
 ):
     """CSR arrays of the homography operator (rows already divided by ``num_samples``).
 
+    ``cubic``: Keys' cubic taps instead of bilinear ones (:mod:`.trajectories`).
     ``visible`` (int16 or int32 ``(num_samples, H, W)``) gives the segment of every pixel at
     every instant (:mod:`.visibility`); None: ``labels`` throughout. ``substitute``:
     ``(take, indptr, indices, values)``, a bool mask over the pixels and a CSR matrix (int32
@@ -437,6 +567,7 @@ def assemble_homography(
         flows,
         fractions,
         select,
+        bool(cubic),
     )
 
 
@@ -455,9 +586,12 @@ def assemble_splats(
     flows: np.ndarray,
     fractions: np.ndarray,
     rows=None,
+    *,
+    cubic: bool = False,
 ):
     """Per source item, the summed splat weights onto blurred pixels (CSR arrays).
 
+    ``cubic``: Keys' cubic taps instead of bilinear ones (:mod:`.trajectories`).
     ``rows`` (bool ``labels_shape``): only the items some of whose taps can fall on these
     blurred pixels are splatted (the others get no entries), so the splats onto them are
     complete and those onto other pixels are not.
@@ -479,6 +613,7 @@ def assemble_splats(
         flows,
         fractions,
         select,
+        bool(cubic),
     )
 
 

@@ -5,9 +5,9 @@ pixel ``y`` moves on a straight line with constant velocity during the
 exposure, ``y + s * flow_forward(y)`` for instants ``s >= 0`` and
 ``y + |s| * flow_backward(y)`` for ``s < 0``. Kernels are formed by forward
 warping: at every instant the content of ``y`` is splatted bilinearly onto the
-four pixels around its position, so the kernel of blurred pixel ``z`` collects
-the pixels whose trajectories pass through ``z``. Every row is then normalised
-to sum to one.
+four pixels around its position (or by Keys' cubic weights onto sixteen), so the
+kernel of blurred pixel ``z`` collects the pixels whose trajectories pass through
+``z``. Every row is then normalised to sum to one.
 
 Instants, positions, bilinear weights and the border rule (source pixels of an
 extended grid carry the flow and content of the nearest in-image pixel) are
@@ -31,9 +31,11 @@ from .homography import _check_num_samples, csr_from_arrays
 from .operator import SparseBlur
 from .trajectories import (
     bilinear_taps,
+    cubic_taps,
     displacement_margin,
     displacement_positions,
     extended_grid,
+    is_cubic,
 )
 
 MIN_COVERAGE = 1e-3
@@ -51,7 +53,7 @@ def _check_flow(flow, name: str) -> np.ndarray:
     return flow.astype(np.float64)
 
 
-def _inputs(flow_forward, flow_backward, exposure: Exposure, num_samples):
+def _inputs(flow_forward, flow_backward, exposure: Exposure, num_samples, cubic):
     forward = _check_flow(flow_forward, "flow_forward")
     backward = _check_flow(flow_backward, "flow_backward")
     if forward.shape != backward.shape:
@@ -60,7 +62,7 @@ def _inputs(flow_forward, flow_backward, exposure: Exposure, num_samples):
         )
     num_samples = _check_num_samples(num_samples)
     fractions = exposure.sample_fractions(num_samples).astype(np.float64)
-    margin = displacement_margin(forward, backward, fractions)
+    margin = displacement_margin(forward, backward, fractions, cubic=cubic)
     return forward, backward, fractions, margin
 
 
@@ -71,6 +73,7 @@ def displacement_blur(
     *,
     num_samples: int = NUM_SAMPLES,
     rows: np.ndarray | None = None,
+    interpolation: str = "bilinear",
 ) -> SparseBlur:
     """Blur operator from 2D displacements by forward warping (Kim & Lee 2015).
 
@@ -95,8 +98,9 @@ def displacement_blur(
         Rows: blurred pixels; columns: pixels of the sharp image. Every row (of ``rows``)
         sums to one.
     """
+    cubic = is_cubic(interpolation)
     forward, backward, fractions, margin = _inputs(
-        flow_forward, flow_backward, exposure, num_samples
+        flow_forward, flow_backward, exposure, num_samples, cubic
     )
     shape = forward.shape[:2]
     if rows is not None:
@@ -105,7 +109,9 @@ def displacement_blur(
             raise InputError(f"rows must be a bool array of shape {shape}, got {rows.shape}")
     item_x, item_y, item_src = extended_grid(shape, margin)
     flows = np.ascontiguousarray(np.stack([forward, backward]))
-    splats = _kernels.assemble_splats(shape, item_x, item_y, item_src, flows, fractions, rows)
+    splats = _kernels.assemble_splats(
+        shape, item_x, item_y, item_src, flows, fractions, rows, cubic=cubic
+    )
     size = shape[0] * shape[1]
     # Source-major splats -> rows of blurred pixels; columns come out sorted since
     # the extended pixels are ordered by the in-image pixel they stand for.
@@ -122,20 +128,23 @@ def displacement_blur_reference(
     exposure: Exposure,
     *,
     num_samples: int = NUM_SAMPLES,
+    interpolation: str = "bilinear",
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`displacement_blur`.
 
     Used by the tests to check the fast assembly.
     """
+    cubic = is_cubic(interpolation)
     forward, backward, fractions, margin = _inputs(
-        flow_forward, flow_backward, exposure, num_samples
+        flow_forward, flow_backward, exposure, num_samples, cubic
     )
     shape = forward.shape[:2]
     size = shape[0] * shape[1]
     x, y, source = extended_grid(shape, margin)
     sy, sx = np.divmod(source, shape[1])
     positions = displacement_positions(x, y, forward[sy, sx], backward[sy, sx], fractions)
-    dest, weight, valid = bilinear_taps(positions, shape, border="drop")
+    taps = cubic_taps if cubic else bilinear_taps
+    dest, weight, valid = taps(positions, shape, border="drop")
     cols = np.broadcast_to(source[:, None, None], dest.shape)
     splat = sp.coo_matrix((weight[valid], (dest[valid], cols[valid])), shape=(size, size)).tocsr()
     splat.sum_duplicates()

@@ -1,11 +1,12 @@
 """The homography-induced blur operator of piecewise-rigid scene flow (paper Sec. 3).
 
 Row ``x`` of the operator is the discretised exposure integral of Eq. 3-4:
-the mean over the ``N`` instants ``t`` of the sharp reference image, bilinearly
-interpolated at ``H_ref_from_t[label(x), t] @ x``; with per-instant segments
-(:mod:`.visibility`), ``label(x)`` is the segment the pixel shows at ``t``. Sample
-instants, positions, bilinear weights and the border rule (clamp to the image, i.e.
-replicate edge content) are those of :mod:`.trajectories`; duplicate taps are summed.
+the mean over the ``N`` instants ``t`` of the sharp reference image, interpolated
+(bilinear as in the paper, or cubic) at ``H_ref_from_t[label(x), t] @ x``; with
+per-instant segments (:mod:`.visibility`), ``label(x)`` is the segment the pixel shows at
+``t``. Sample instants, positions, interpolation weights and the border rule (clamp to the
+image, i.e. replicate edge content) are those of :mod:`.trajectories`; duplicate taps are
+summed.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from ..sceneflow.model import SceneFlow
 from ..settings import NUM_SAMPLES
 from . import _kernels
 from .operator import SparseBlur
-from .trajectories import bilinear_taps, homography_positions
+from .trajectories import bilinear_taps, cubic_taps, homography_positions, is_cubic
 
 
 def _check_num_samples(num_samples) -> int:
@@ -80,6 +81,7 @@ def homography_blur(
     num_samples: int = NUM_SAMPLES,
     visible=None,
     substitute: tuple[SparseBlur, np.ndarray] | None = None,
+    interpolation: str = "bilinear",
 ) -> SparseBlur:
     """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
 
@@ -100,6 +102,9 @@ def homography_blur(
         Another operator over the view and a mask: the pixels of the mask take that
         operator's rows, which are not computed here
         (:func:`~stereodeblur.blur.operator.merge_rows` of the two, built once).
+    interpolation : {'bilinear', 'cubic'}, optional
+        How the sharp image is sampled at the positions: bilinear (the paper) or Keys'
+        cubic convolution (:mod:`.trajectories`; about 2.5x the entries).
 
     Returns
     -------
@@ -107,20 +112,26 @@ def homography_blur(
         Rows: blurred pixels; columns: pixels of the sharp reference image.
         Every row sums to one.
     """
+    cubic = is_cubic(interpolation)
     homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
     if visible is not None:
         visible = _check_visible(visible, num_samples, labels.shape, homographies.shape[0])
     if substitute is not None:
         substitute = _check_substitute(substitute, labels.shape)
     indptr, indices, data = _kernels.assemble_homography(
-        homographies, labels, num_samples, visible, substitute
+        homographies, labels, num_samples, visible, substitute, cubic=cubic
     )
     matrix = csr_from_arrays(indptr, indices, data, labels.size)
     return SparseBlur(matrix, tuple(labels.shape))
 
 
 def homography_blur_reference(
-    sceneflow: SceneFlow, exposure: Exposure, *, num_samples: int = NUM_SAMPLES, visible=None
+    sceneflow: SceneFlow,
+    exposure: Exposure,
+    *,
+    num_samples: int = NUM_SAMPLES,
+    visible=None,
+    interpolation: str = "bilinear",
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`homography_blur`.
 
@@ -132,10 +143,14 @@ def homography_blur_reference(
     if visible is not None:
         labels = np.moveaxis(np.where(visible >= 0, visible, labels), 0, -1)
     positions = homography_positions(homographies, labels).reshape(size, num_samples, 2)
-    index, weight, valid = bilinear_taps(positions, sceneflow.shape, border="clamp")
+    if is_cubic(interpolation):
+        index, weight, valid = cubic_taps(positions, sceneflow.shape, border="clamp")
+    else:
+        index, weight, valid = bilinear_taps(positions, sceneflow.shape, border="clamp")
     rows = np.broadcast_to(np.arange(size)[:, None, None], index.shape)
     matrix = sp.coo_matrix((weight[valid], (rows[valid], index[valid])), shape=(size, size)).tocsr()
     matrix.sum_duplicates()
+    matrix.eliminate_zeros()
     matrix.data = (matrix.data / num_samples).astype(np.float32)
     matrix.sort_indices()
     return SparseBlur(matrix, tuple(sceneflow.shape))

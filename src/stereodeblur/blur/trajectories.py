@@ -1,4 +1,4 @@
-"""Sample positions along blur trajectories and their bilinear weights.
+"""Sample positions along blur trajectories and their interpolation weights.
 
 This module is the one source of truth for how both blur operators sample time
 and space; :mod:`.homography` and :mod:`.displacement` only assemble matrices
@@ -32,6 +32,12 @@ and weights ``(1 - fx)(1 - fy), fx (1 - fy), (1 - fx) fy, fx fy``,
 ``fx = px - x0``. A fractional part within ``SNAP = 1e-9`` of 0 or 1 is rounded
 to it, so that zero motion gives exactly the identity despite rounding in the
 homographies. Taps with weight zero are dropped.
+
+Cubic weights (``interpolation='cubic'``, homography kernels): Keys' cubic convolution
+(a = -0.5) over the sixteen taps ``x0 - 1 .. x0 + 2`` by ``y0 - 1 .. y0 + 2``, each
+coordinate clamped to the image (replicate edge), with the same snapping. It interpolates
+the sharp image with third-order accuracy instead of bilinear interpolation's second-order
+smoothing, which on noiseless frames was the largest part of the model's error.
 
 Border rule (shared by both operators)
 --------------------------------------
@@ -86,6 +92,17 @@ def displacement_point(x, y, fraction, forward_u, forward_v, backward_u, backwar
     if fraction >= 0.0:
         return x + fraction * forward_u, y + fraction * forward_v
     return x - fraction * backward_u, y - fraction * backward_v
+
+
+@njit(cache=True)
+def keys_weight(t):
+    """Keys' cubic convolution kernel (a = -0.5) at offset ``t``."""
+    t = abs(t)
+    if t <= 1.0:
+        return (1.5 * t - 2.5) * t * t + 1.0
+    if t < 2.0:
+        return ((-0.5 * t + 2.5) * t - 4.0) * t + 2.0
+    return 0.0
 
 
 @njit(cache=True)
@@ -217,15 +234,69 @@ def bilinear_taps(
     return index, np.where(valid, weight, 0.0), valid
 
 
+def is_cubic(interpolation: str) -> bool:
+    """Whether ``interpolation`` (``'bilinear'`` or ``'cubic'``) asks for cubic taps."""
+    from ..settings import INTERPOLATIONS
+
+    if interpolation not in INTERPOLATIONS:
+        raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
+    return interpolation == "cubic"
+
+
+def keys_weights(t: np.ndarray) -> np.ndarray:
+    """:func:`keys_weight` of every offset in ``t``."""
+    t = np.abs(t)
+    near = 1.5 * t**3 - 2.5 * t**2 + 1
+    far = -0.5 * t**3 + 2.5 * t**2 - 4 * t + 2
+    return np.where(t <= 1, near, np.where(t < 2, far, 0.0))
+
+
+def cubic_taps(
+    positions: np.ndarray, shape: tuple[int, int], *, border: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sixteen cubic taps of every position (as :func:`bilinear_taps`).
+
+    ``border``: 'clamp' clamps the positions and the taps to the image (gathering; taps may
+    then repeat a pixel), 'drop' marks taps outside the image invalid (splatting).
+
+    Returns
+    -------
+    index, weight, valid : ndarray, shape (..., 16)
+        Flat pixel index, Keys' weight (zero where invalid) and validity of each tap.
+    """
+    height, width = shape
+    px, py = positions[..., 0], positions[..., 1]
+    if border == "clamp":
+        px = np.clip(px, 0.0, width - 1)
+        py = np.clip(py, 0.0, height - 1)
+    elif border != "drop":
+        raise ValueError(f"border must be 'clamp' or 'drop', got {border!r}")
+    x0, fx = _split(px)
+    y0, fy = _split(py)
+    offsets = np.arange(-1, 3)
+    xs, ys = x0[..., None] + offsets, y0[..., None] + offsets
+    inside_x, inside_y = (xs >= 0) & (xs < width), (ys >= 0) & (ys < height)
+    if border == "clamp":
+        xs, ys = np.clip(xs, 0, width - 1), np.clip(ys, 0, height - 1)
+        inside_x[:], inside_y[:] = True, True
+    wx = keys_weights(fx[..., None] - offsets)
+    wy = keys_weights(fy[..., None] - offsets)
+    index = (ys[..., :, None] * width + xs[..., None, :]).reshape(*px.shape, 16)
+    weight = (wy[..., :, None] * wx[..., None, :]).reshape(*px.shape, 16)
+    valid = (weight != 0) & (inside_y[..., :, None] & inside_x[..., None, :]).reshape(*px.shape, 16)
+    return np.where(valid, index, 0), np.where(valid, weight, 0.0), valid
+
+
 # --------------------------------------------------------------------------------------
 # The extended source grid of splatting (border rule).
 # --------------------------------------------------------------------------------------
 
 
 def displacement_margin(
-    flow_forward: np.ndarray, flow_backward: np.ndarray, fractions: np.ndarray
+    flow_forward: np.ndarray, flow_backward: np.ndarray, fractions: np.ndarray, *, cubic=False
 ) -> int:
-    """Width in pixels of the extended grid: one more than the farthest reach from outside.
+    """Width in pixels of the extended grid: the farthest reach from outside plus the taps'
+    (one pixel, two for cubic taps).
 
     Extended pixels carry the flow of the nearest edge pixel, so only the flow on
     the image border matters; content from farther outside never reaches the image.
@@ -239,7 +310,7 @@ def displacement_margin(
         return float(max(np.abs(e).max(initial=0.0) for e in edges))
 
     reach = max(ahead * border_max(flow_forward), behind * border_max(flow_backward))
-    return int(np.ceil(reach)) + 1
+    return int(np.ceil(reach)) + (2 if cubic else 1)
 
 
 def extended_grid(shape: tuple[int, int], margin: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

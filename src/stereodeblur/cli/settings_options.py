@@ -78,6 +78,13 @@ def _options() -> tuple[SettingOption, ...]:
             choices=tuple(s.KERNELS),
         ),
         SettingOption(
+            "interpolation",
+            "--interpolation",
+            "how the blur kernels sample the sharp image: bilinear (paper) or cubic (Keys; "
+            "about 2.5x the operator's entries; default: %(default)s)",
+            choices=tuple(s.INTERPOLATIONS),
+        ),
+        SettingOption(
             "motion_source",
             "--motion-source",
             "where the motion comes from (default: %(default)s)",

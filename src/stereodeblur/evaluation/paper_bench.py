@@ -278,11 +278,13 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 
 
 def _signature(column: Column, settings) -> dict:
-    """What a cached result depends on (``observations`` only when not ``'single'``, so
-    results from before that option stay valid)."""
+    """What a cached result depends on (``observations`` only when not ``'single'`` and
+    ``interpolation`` only when not ``'bilinear'``, so results from before those options stay
+    valid)."""
     fields = asdict(column.settings(settings))
-    if fields["observations"] == "single":
-        del fields["observations"]
+    for name, old in (("observations", "single"), ("interpolation", "bilinear")):
+        if fields[name] == old:
+            del fields[name]
     return {**fields, "frame": FRAME}
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..blur.operator import SparseBlur
-from ..blur.trajectories import homography_positions
+from ..blur.trajectories import homography_positions, keys_weights
 from ..deconv.irls import Observation
 from ..deconv.trust import OUTSIDE_WEIGHT, leaves_view
 from ..deconv.weights import hidden_weights
@@ -42,14 +42,6 @@ class NamedObservation:
 
     name: str
     observation: Observation
-
-
-def keys_weights(t: np.ndarray) -> np.ndarray:
-    """Keys' cubic convolution kernel (a = -0.5) at offsets ``t``."""
-    t = np.abs(t)
-    near = 1.5 * t**3 - 2.5 * t**2 + 1
-    far = -0.5 * t**3 + 2.5 * t**2 - 4 * t + 2
-    return np.where(t <= 1, near, np.where(t < 2, far, 0.0))
 
 
 def warp_operator(positions: np.ndarray, shape) -> SparseBlur:

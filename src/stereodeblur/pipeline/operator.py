@@ -95,17 +95,32 @@ def build_operator(
     forward = motion.flow_forward
     backward = -forward if motion.flow_backward is None else motion.flow_backward
     num = settings.num_samples
+    interpolation = settings.interpolation
     if settings.kernels == "displacement":
-        return displacement_blur(forward, backward, exposure, num_samples=num)
+        return displacement_blur(
+            forward, backward, exposure, num_samples=num, interpolation=interpolation
+        )
     from ..blur.homography import homography_blur
 
     substitute = None
     if flow_rows is not None and np.any(flow_rows):
         flow_rows = np.asarray(flow_rows, dtype=bool)
-        rows = displacement_blur(forward, backward, exposure, num_samples=num, rows=flow_rows)
+        rows = displacement_blur(
+            forward,
+            backward,
+            exposure,
+            num_samples=num,
+            rows=flow_rows,
+            interpolation=interpolation,
+        )
         substitute = (rows, flow_rows)
     return homography_blur(
-        motion.sceneflow, exposure, num_samples=num, visible=visible, substitute=substitute
+        motion.sceneflow,
+        exposure,
+        num_samples=num,
+        visible=visible,
+        substitute=substitute,
+        interpolation=interpolation,
     )
 
 
