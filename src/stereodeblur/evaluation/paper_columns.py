@@ -16,8 +16,9 @@ ours (full)                   sceneflow        homography    gated (default)    
 ============================  ===============  ============  =================  ========
 
 Every column but "ours (full)" (and the true-motion and sweep runs of it, which take the
-default ``observations``) deblurs each frame from its single observation. The paper's five
-columns and Table 2 run the paper's 10 IRLS x 25 CG iterations; "monocular" and "ours" the
+default ``observations``) deblurs each frame from its single observation; the paper's five
+columns sample the sharp image bilinearly, "monocular" and "ours" with the default
+``interpolation``. The paper's five columns and Table 2 run the paper's 10 IRLS x 25 CG iterations; "monocular" and "ours" the
 default counts (both set by ``--irls`` / ``--cg`` when given).
 
 "Monocular (same defaults)" is the strongest monocular alternative: our solver, alpha rule
@@ -41,6 +42,7 @@ from dataclasses import dataclass, field, replace
 from ..settings import (
     DEFAULT_ALPHA,
     DEFAULT_BOUNDARY_WEIGHTS,
+    DEFAULT_INTERPOLATION,
     DEFAULT_OBSERVATIONS,
     MONOCULAR_BOUNDARY_WEIGHTS,
     NUM_CG,
@@ -68,6 +70,7 @@ class Column:
     boundary_mask: str | None = None
     observations: str = "single"
     paper_solver: bool = False
+    interpolation: str = "bilinear"
 
     def settings(self, base: DeblurSettings) -> DeblurSettings:
         """``base`` (a DeblurSettings) with this column's switches; a column of the paper's
@@ -86,12 +89,15 @@ class Column:
             alpha=self.alpha,
             boundary_mask=self.boundary_mask,
             observations=self.observations,
+            interpolation=self.interpolation,
         )
 
     def describe(self) -> str:
         """The column's settings, e.g. ``motion_source=gt, kernels=displacement, ...``."""
         mask = f", boundary_mask={self.boundary_mask}" if self.boundary_mask else ""
         seen = f", observations={self.observations}" if self.observations != "single" else ""
+        if self.interpolation != "bilinear":
+            seen += f", interpolation={self.interpolation}"
         return (
             f"motion_source={self.motion_source}, kernels={self.kernels}, "
             f"boundary_weights={self.boundary_weights}, alpha={self.alpha}{mask}{seen}"
@@ -119,6 +125,7 @@ COLUMNS = (
         "displacement",
         MONOCULAR_BOUNDARY_WEIGHTS,
         DEFAULT_ALPHA,
+        interpolation=DEFAULT_INTERPOLATION,
     ),
     Column(
         "ours-full",
@@ -128,6 +135,7 @@ COLUMNS = (
         DEFAULT_BOUNDARY_WEIGHTS,
         DEFAULT_ALPHA,
         observations=DEFAULT_OBSERVATIONS,
+        interpolation=DEFAULT_INTERPOLATION,
     ),
 )
 """Tables 3 and 4."""
@@ -145,6 +153,7 @@ TRUE_MOTION = Column(
     DEFAULT_BOUNDARY_WEIGHTS,
     DEFAULT_ALPHA,
     observations=DEFAULT_OBSERVATIONS,
+    interpolation=DEFAULT_INTERPOLATION,
 )
 """Ours (full) with the scene flow fitted to the true disparity and flow: how far a better
 motion estimate could take the blur model (not a method; kept out of Tables 3 and 4)."""
