@@ -64,6 +64,7 @@ ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 PAPER = {
     "alpha": PAPER_ALPHA,
     "boundary_weights": "none",
+    "interpolation": "bilinear",
     "num_irls": PAPER_IRLS,
     "num_cg": PAPER_CG,
 }
@@ -84,13 +85,14 @@ CANDIDATES = {
     "observations": {"observations": "all", "alpha": "auto"},
     "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG, "alpha": "auto"},
     "cubic": {"interpolation": "cubic"},
+    "bilinear": {"interpolation": "bilinear"},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
 ``observations`` issue 13's further observations, ``iterations-10x25`` the paper's iteration
-counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` the
-homography kernels' cubic interpolation; all but the cross-view ones and ``cubic`` with the
-noise rule, as they were measured."""
+counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` and
+``bilinear`` the kernels' interpolation (bilinear the default until stop 24); all but the
+cross-view ones and the interpolations with the noise rule, as they were measured."""
 
 
 @dataclass(frozen=True)
