@@ -33,11 +33,12 @@ and weights ``(1 - fx)(1 - fy), fx (1 - fy), (1 - fx) fy, fx fy``,
 to it, so that zero motion gives exactly the identity despite rounding in the
 homographies. Taps with weight zero are dropped.
 
-Cubic weights (``interpolation='cubic'``, homography kernels): Keys' cubic convolution
-(a = -0.5) over the sixteen taps ``x0 - 1 .. x0 + 2`` by ``y0 - 1 .. y0 + 2``, each
-coordinate clamped to the image (replicate edge), with the same snapping. It interpolates
-the sharp image with third-order accuracy instead of bilinear interpolation's second-order
-smoothing, which on noiseless frames was the largest part of the model's error.
+Cubic weights (``interpolation='cubic'``, both operators): Keys' cubic convolution
+(a = -0.5) over the sixteen taps ``x0 - 1 .. x0 + 2`` by ``y0 - 1 .. y0 + 2``, with the same
+snapping; gathering clamps each tap coordinate to the image (replicate edge), splatting drops
+the taps outside it. It interpolates the sharp image with third-order accuracy instead of
+bilinear interpolation's smoothing, which on noiseless frames was the largest part of the
+model's error.
 
 Border rule (shared by both operators)
 --------------------------------------
