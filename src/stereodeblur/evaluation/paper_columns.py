@@ -18,8 +18,9 @@ ours (full)                   sceneflow        homography    gated (default)    
 Every column but "ours (full)" (and the true-motion and sweep runs of it, which take the
 default ``observations``) deblurs each frame from its single observation; the paper's five
 columns sample the sharp image bilinearly, "monocular" and "ours" with the default
-``interpolation``. The paper's five columns and Table 2 run the paper's 10 IRLS x 25 CG iterations; "monocular" and "ours" the
-default counts (both set by ``--irls`` / ``--cg`` when given).
+``interpolation``. The paper's five columns and Table 2 run the paper's 10 IRLS x 25 CG
+iterations; "monocular" and "ours" the default counts (both set by ``--irls`` / ``--cg`` when
+given).
 
 "Monocular (same defaults)" is the strongest monocular alternative: our solver, alpha rule
 (``'held-out'`` is ``'auto'`` there: no other view) and boundary handling on the initial
