@@ -198,25 +198,42 @@ def _merge_taps_sorted(px, py, n, drop_outside, height, width, divisor, out_idx,
     return count
 
 
-@njit(**_JIT)
-def _cubic_tap(t, size, drop_outside):
-    """Tap coordinate ``t`` clamped to ``[0, size)``, or -1 if splatting drops it."""
-    if 0 <= t < size:
-        return t
-    if drop_outside:
-        return -1
-    return min(max(t, 0), size - 1)
+@njit(inline="always", **_JIT)
+def _cubic_sample_taps(x, y, height, width, drop_outside, tx, ty, tw):
+    """The non-zero Keys taps of the position ``(x, y)`` into ``tx``, ``ty``, ``tw`` (at most
+    16, row by row); returns their count. Taps outside the image are clamped to it when
+    gathering and dropped when splatting."""
+    x0, fx = split_coordinate(x)
+    y0, fy = split_coordinate(y)
+    m = 0
+    for dy in range(-1, 3):
+        wy = keys_weight(fy - dy)
+        row = y0 + dy
+        if wy == 0.0 or (drop_outside and not 0 <= row < height):
+            continue
+        row = min(max(row, 0), height - 1)
+        for dx in range(-1, 3):
+            w = wy * keys_weight(fx - dx)
+            col = x0 + dx
+            if w == 0.0 or (drop_outside and not 0 <= col < width):
+                continue
+            tx[m] = min(max(col, 0), width - 1)
+            ty[m] = row
+            tw[m] = w
+            m += 1
+    return m
 
 
 @njit(**_JIT)
 def _merge_cubic_taps(
-    px, py, n, drop_outside, height, width, divisor, acc, mark, out_idx, out_val, out_pos
+    px, py, n, drop_outside, height, width, divisor, acc, mark, taps, out_idx, out_val, out_pos
 ):
-    """:func:`_merge_taps` with Keys' cubic taps: clamped to the image when gathering,
-    dropped outside it when splatting.
+    """:func:`_merge_taps` with Keys' cubic taps (:func:`_cubic_sample_taps`); ``taps``:
+    scratch ``(tx, ty, tw)`` for ``16 * n`` of them.
 
     The weights can be negative, so the accumulator's touched cells are marked (and the
-    marks cleared again when emitted); a tap sum of exactly zero is dropped.
+    marks cleared again when emitted); a tap sum of exactly zero is dropped. Bounding boxes
+    larger than the accumulator sort all taps instead.
     """
     # Taps of a position p lie in [floor(p) - 1, floor(p) + 2]; those in the image count.
     bx0 = max(np.int64(np.floor(px[:n].min())) - 1, 0)
@@ -227,30 +244,37 @@ def _merge_cubic_taps(
         return 0
     bw = bx1 - bx0 + 1
     area = bw * (by1 - by0 + 1)
+    tx, ty, tw = taps
     if area > acc.size:
-        return _merge_cubic_taps_sorted(
-            px, py, n, drop_outside, height, width, divisor, out_idx, out_val, out_pos
-        )
+        m = 0
+        for k in range(n):
+            m += _cubic_sample_taps(
+                px[k], py[k], height, width, drop_outside, tx[m:], ty[m:], tw[m:]
+            )
+        flat = ty[:m] * width + tx[:m]
+        order = np.argsort(flat, kind="mergesort")  # stable: sums in sample order
+        count = 0
+        i = 0
+        while i < m:
+            g = flat[order[i]]
+            total = 0.0
+            while i < m and flat[order[i]] == g:
+                total += tw[order[i]]
+                i += 1
+            if total != 0.0:
+                out_idx[out_pos + count] = g
+                out_val[out_pos + count] = total / divisor
+                count += 1
+        return count
     for k in range(n):
-        x0, fx = split_coordinate(px[k])
-        y0, fy = split_coordinate(py[k])
-        for dy in range(-1, 3):
-            wy = keys_weight(fy - dy)
-            ty = _cubic_tap(y0 + dy, height, drop_outside)
-            if wy == 0.0 or ty < 0:
-                continue
-            row = (ty - by0) * bw - bx0
-            for dx in range(-1, 3):
-                w = wy * keys_weight(fx - dx)
-                tx = _cubic_tap(x0 + dx, width, drop_outside)
-                if w == 0.0 or tx < 0:
-                    continue
-                local = row + tx
-                if mark[local] == 0:
-                    mark[local] = 1
-                    acc[local] = w
-                else:
-                    acc[local] += w
+        m = _cubic_sample_taps(px[k], py[k], height, width, drop_outside, tx, ty, tw)
+        for t in range(m):
+            local = (ty[t] - by0) * bw + tx[t] - bx0
+            if mark[local] == 0:
+                mark[local] = 1
+                acc[local] = tw[t]
+            else:
+                acc[local] += tw[t]
     count = 0
     for local in range(area):
         if mark[local] == 0:
@@ -259,43 +283,6 @@ def _merge_cubic_taps(
         if acc[local] != 0.0:
             out_idx[out_pos + count] = (by0 + local // bw) * width + bx0 + local % bw
             out_val[out_pos + count] = acc[local] / divisor
-            count += 1
-    return count
-
-
-@njit(**_JIT)
-def _merge_cubic_taps_sorted(
-    px, py, n, drop_outside, height, width, divisor, out_idx, out_val, out_pos
-):
-    """Fallback of :func:`_merge_cubic_taps` for huge bounding boxes: sort all taps."""
-    idx = np.empty(16 * n, np.int64)
-    val = np.empty(16 * n, np.float64)
-    m = 0
-    for k in range(n):
-        x0, fx = split_coordinate(px[k])
-        y0, fy = split_coordinate(py[k])
-        for dy in range(-1, 3):
-            wy = keys_weight(fy - dy)
-            ty = _cubic_tap(y0 + dy, height, drop_outside)
-            for dx in range(-1, 3):
-                w = wy * keys_weight(fx - dx)
-                tx = _cubic_tap(x0 + dx, width, drop_outside)
-                if w != 0.0 and tx >= 0 and ty >= 0:
-                    idx[m] = ty * width + tx
-                    val[m] = w
-                    m += 1
-    order = np.argsort(idx[:m], kind="mergesort")
-    count = 0
-    i = 0
-    while i < m:
-        g = idx[order[i]]
-        total = 0.0
-        while i < m and idx[order[i]] == g:
-            total += val[order[i]]
-            i += 1
-        if total != 0.0:
-            out_idx[out_pos + count] = g
-            out_val[out_pos + count] = total / divisor
             count += 1
     return count
 
@@ -407,6 +394,7 @@ def _assemble_range(
     acc = np.empty(_ACCUMULATOR_CELLS, np.float64)
     mark = np.zeros(_ACCUMULATOR_CELLS, np.uint8)
     touched = np.empty(4 * n, np.int64)
+    taps = (np.empty(16 * n, np.int64), np.empty(16 * n, np.int64), np.empty(16 * n, np.float64))
     px = np.empty(n, np.float64)
     py = np.empty(n, np.float64)
     counts = np.empty(last - first, np.int64)
@@ -444,7 +432,19 @@ def _assemble_range(
             continue
         if cubic:
             c = _merge_cubic_taps(
-                px, py, n, drop_outside, height, width, divisor, acc, mark, out_idx, out_val, pos
+                px,
+                py,
+                n,
+                drop_outside,
+                height,
+                width,
+                divisor,
+                acc,
+                mark,
+                taps,
+                out_idx,
+                out_val,
+                pos,
             )
             counts[item - first] = c
             pos += c

@@ -194,6 +194,19 @@ def _split(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (i0 + up).astype(np.int64), f
 
 
+def _split_positions(positions: np.ndarray, shape: tuple[int, int], border: str):
+    """``(x0, fx), (y0, fy)`` of :func:`_split` for ``positions``, clamped to the image first
+    for ``border='clamp'`` (gathering), as they are for ``'drop'`` (splatting)."""
+    height, width = shape
+    px, py = positions[..., 0], positions[..., 1]
+    if border == "clamp":
+        px = np.clip(px, 0.0, width - 1)
+        py = np.clip(py, 0.0, height - 1)
+    elif border != "drop":
+        raise ValueError(f"border must be 'clamp' or 'drop', got {border!r}")
+    return _split(px), _split(py)
+
+
 def bilinear_taps(
     positions: np.ndarray, shape: tuple[int, int], *, border: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -219,14 +232,7 @@ def bilinear_taps(
         Whether the tap is inside the image and has a non-zero weight.
     """
     height, width = shape
-    px, py = positions[..., 0], positions[..., 1]
-    if border == "clamp":
-        px = np.clip(px, 0.0, width - 1)
-        py = np.clip(py, 0.0, height - 1)
-    elif border != "drop":
-        raise ValueError(f"border must be 'clamp' or 'drop', got {border!r}")
-    x0, fx = _split(px)
-    y0, fy = _split(py)
+    (x0, fx), (y0, fy) = _split_positions(positions, shape, border)
     xs = np.stack([x0, x0 + 1, x0, x0 + 1], axis=-1)
     ys = np.stack([y0, y0, y0 + 1, y0 + 1], axis=-1)
     weight = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], axis=-1)
@@ -266,14 +272,7 @@ def cubic_taps(
         Flat pixel index, Keys' weight (zero where invalid) and validity of each tap.
     """
     height, width = shape
-    px, py = positions[..., 0], positions[..., 1]
-    if border == "clamp":
-        px = np.clip(px, 0.0, width - 1)
-        py = np.clip(py, 0.0, height - 1)
-    elif border != "drop":
-        raise ValueError(f"border must be 'clamp' or 'drop', got {border!r}")
-    x0, fx = _split(px)
-    y0, fy = _split(py)
+    (x0, fx), (y0, fy) = _split_positions(positions, shape, border)
     offsets = np.arange(-1, 3)
     xs, ys = x0[..., None] + offsets, y0[..., None] + offsets
     inside_x, inside_y = (xs >= 0) & (xs < width), (ys >= 0) & (ys < height)
@@ -282,9 +281,9 @@ def cubic_taps(
         inside_x[:], inside_y[:] = True, True
     wx = keys_weights(fx[..., None] - offsets)
     wy = keys_weights(fy[..., None] - offsets)
-    index = (ys[..., :, None] * width + xs[..., None, :]).reshape(*px.shape, 16)
-    weight = (wy[..., :, None] * wx[..., None, :]).reshape(*px.shape, 16)
-    valid = (weight != 0) & (inside_y[..., :, None] & inside_x[..., None, :]).reshape(*px.shape, 16)
+    index = (ys[..., :, None] * width + xs[..., None, :]).reshape(*x0.shape, 16)
+    weight = (wy[..., :, None] * wx[..., None, :]).reshape(*x0.shape, 16)
+    valid = (weight != 0) & (inside_y[..., :, None] & inside_x[..., None, :]).reshape(*x0.shape, 16)
     return np.where(valid, index, 0), np.where(valid, weight, 0.0), valid
 
 
