@@ -58,6 +58,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..settings import INTERPOLATIONS
+
 SNAP = 1e-9
 """Fractional parts closer than this to 0 or 1 are rounded (see module docstring)."""
 
@@ -243,8 +245,6 @@ def bilinear_taps(
 
 def is_cubic(interpolation: str) -> bool:
     """Whether ``interpolation`` (``'bilinear'`` or ``'cubic'``) asks for cubic taps."""
-    from ..settings import INTERPOLATIONS
-
     if interpolation not in INTERPOLATIONS:
         raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
     return interpolation == "cubic"
