@@ -65,6 +65,7 @@ PAPER = {
     "alpha": PAPER_ALPHA,
     "boundary_weights": "none",
     "interpolation": "bilinear",
+    "observations": "single",
     "num_irls": PAPER_IRLS,
     "num_cg": PAPER_CG,
 }
@@ -83,13 +84,19 @@ CANDIDATES = {
     "adaptive": {"boundary_weights": "adaptive", "alpha": "auto"},
     "adaptive-cross-view": {"alpha": "cross-view", "boundary_weights": "adaptive"},
     "observations": {"observations": "all", "alpha": "auto"},
+    "single": {"observations": "single"},
+    "other-view": {"observations": "other-view"},
+    "all-observations": {"observations": "all"},
     "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG, "alpha": "auto"},
     "cubic": {"interpolation": "cubic"},
     "bilinear": {"interpolation": "bilinear"},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
-``observations`` issue 13's further observations, ``iterations-10x25`` the paper's iteration
+``observations`` issue 13's further observations (stop 23, with the noise rule;
+``other-view`` the other view's and ``all-observations`` all, with 'held-out''s alpha
+chosen from the view's own frame; ``single`` the view's own frame alone, the default until
+stop 25), ``iterations-10x25`` the paper's iteration
 counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` and
 ``bilinear`` the kernels' interpolation (bilinear the default until stop 24); all but the
 cross-view ones and the interpolations with the noise rule, as they were measured."""
@@ -108,7 +115,11 @@ class Column:
         from stereodeblur.settings import MONOCULAR_BOUNDARY_WEIGHTS
 
         if self.motion_source == "initial-flow":
-            monocular = {"kernels": "displacement", "boundary_weights": MONOCULAR_BOUNDARY_WEIGHTS}
+            monocular = {
+                "kernels": "displacement",
+                "boundary_weights": MONOCULAR_BOUNDARY_WEIGHTS,
+                "observations": "single",  # without a scene flow there is no other
+            }
             return DeblurSettings(motion_source="initial-flow", **(monocular | self.overrides))
         return DeblurSettings(motion_source=self.motion_source, **self.overrides)
 

@@ -44,11 +44,11 @@ PAPER_COUNTS = (PAPER_IRLS, PAPER_CG)
 """``--irls 10 --cg 25``: the paper's counts (the default before stop 22), beside the default."""
 
 
-def columns():
-    """The monocular and initial-flow columns, then ours with each set of observations."""
+def columns(observations=OBSERVATIONS):
+    """The monocular and initial-flow columns, then ours with each set of ``observations``."""
     base = {c.key: c for c in COLUMNS}
     out = [base["initial-flow"], base["monocular"]]
-    for name in OBSERVATIONS:
+    for name in observations:
         title = f"ours, {TITLES[name]}"
         out.append(replace(base["ours-full"], key=f"ours-{name}", title=title, observations=name))
     return out
@@ -71,12 +71,24 @@ def main(argv=None) -> int:
     parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
     parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
     parser.add_argument("--scenes", default=None, help="comma-separated (default: all)")
+    parser.add_argument(
+        "--observations",
+        default=",".join(OBSERVATIONS),
+        help="ours' columns, comma-separated (default: all of them)",
+    )
+    parser.add_argument(
+        "--no-paper-counts", action="store_true", help="without the 10 x 25 columns"
+    )
     parser.add_argument("--output", default=None, help="Markdown (default: print only)")
     args = parser.parse_args(argv)
+    observations = tuple(o for o in args.observations.split(",") if o)
+    if not observations or set(observations) - set(OBSERVATIONS):
+        parser.error(f"--observations must name some of {', '.join(OBSERVATIONS)}")
     size = tuple(int(v) for v in args.size.lower().split("x"))
     folder = Path(args.work) / args.size
     names = args.scenes.split(",") if args.scenes else paper_bench.default_scenes()
-    chosen, paper = columns(), paper_count_columns()
+    chosen = columns(observations)
+    paper = [] if args.no_paper_counts else paper_count_columns()
     start = time.perf_counter()
     paper_bench.render_missing(folder / "scenes", names, size)
     rows = {}

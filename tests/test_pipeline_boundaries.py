@@ -27,7 +27,15 @@ def scene(tmp_path_factory):
 
 
 # alpha 'auto': one solve per view (the boundary handling is what these tests look at)
-FAST = {"num_irls": 3, "num_cg": 4, "num_samples": 8, "motion_source": "gt", "alpha": "auto"}
+# One observation per view: these tests are about each view's own data weights.
+FAST = {
+    "num_irls": 3,
+    "num_cg": 4,
+    "num_samples": 8,
+    "motion_source": "gt",
+    "alpha": "auto",
+    "observations": "single",
+}
 
 
 def test_gt_mask_keeps_mixed_pixels_at_zero_weight(scene):

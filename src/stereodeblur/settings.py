@@ -118,11 +118,12 @@ GATE_MARGIN = 0.1
 # with keeps 'adaptive': its anchor helps displacement kernels, which 'gated' drops (test
 # split, 40 scenes at 320x240: 28.50 dB against 27.99 dB; calibrate_defaults_test_320x240.md).
 MONOCULAR_BOUNDARY_WEIGHTS = "adaptive"
-# Each view's sharp frame from its own blurred frame (the paper's): the further observations
-# gain on the noisy scenes of `bench paper` but lose up to 1.05 dB on its noiseless planar ones,
-# whose single-observation results are limited by the model's precision
-# (results/paper_observations_640x480.md, issue 13).
-DEFAULT_OBSERVATIONS = "single"
+# The other view's blurred frame as a second data term (alpha chosen from the view's own):
+# train split (40 scenes at 320x240) +0.44 / +0.27 dB over the single observation (true motion /
+# scene flow), worst -0.33 / -0.66 dB; bench paper's objects +0.40 / +0.30 dB, planar +0.67 /
+# +0.75 dB (noiseless / noisy; results/paper_observations_640x480.md, issue 13). 'single' is
+# the paper's.
+DEFAULT_OBSERVATIONS = "other-view"
 # Residual scale of the further observations' Cauchy weights: without them they lose 1-4 dB
 # with the estimated scene flow, with 0.01 they gain 0.2-0.3 dB (issue 13 study,
 # benchmarks/README.md "Multi-observation study", 320x240 object scenes).
@@ -178,8 +179,9 @@ class DeblurSettings:
         alpha and at every alpha of :data:`CROSS_VIEW_ALPHAS` above it and keeps the one
         whose solution best predicts the other view (:mod:`stereodeblur.pipeline.alpha`);
         without the other view (``motion_source='initial-flow'``, a given motion of one
-        view) or where it is observed (``observations`` 'other-view', 'all') it is
-        ``'auto'``. ``'auto'`` sets it from the noise level of the blurred frame
+        view) it is ``'auto'``. With further ``observations`` the candidates are solved
+        from the view's own frame and the chosen alpha is solved once more with them.
+        ``'auto'`` sets it from the noise level of the blurred frame
         (:func:`stereodeblur.deconv.noise.auto_alpha`), and with ``boundary_weights``
         'gated' or 'adaptive' at least to what the share of pixels whose motion is not
         trusted calls for (:func:`stereodeblur.deconv.trust.alpha_from_trust`).
@@ -214,7 +216,8 @@ class DeblurSettings:
         masked experiment, Table 2), on top of ``boundary_weights``.
     observations : {'single', 'other-view', 'neighbours', 'all'}
         The blurred images each view's sharp frame is estimated from: ``'single'`` its own
-        (the paper's); ``'other-view'`` also the other view's frame, ``'neighbours'`` also the
+        (the paper's); ``'other-view'`` (default) also the other view's frame, ``'neighbours'``
+        also the
         view's frames before and after, ``'all'`` both
         (:mod:`stereodeblur.pipeline.observations`;
         weighted by their residual, :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow:

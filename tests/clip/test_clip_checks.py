@@ -52,9 +52,9 @@ def test_truncated_frame_is_found_before_the_first_frame(scene, tmp_path):
 
 def test_only_the_views_a_run_reads_are_checked(scene, tmp_path):
     path = scene / "right" / "000001.png"
-    path.write_bytes(b"")  # with gt motion and alpha 'auto' the left view alone is read
+    path.write_bytes(b"")  # gt motion, alpha 'auto', one observation: the left view alone
     spec = SourceSpec.from_arguments(scene)
-    settings = dataclasses.replace(SETTINGS, alpha="auto")
+    settings = dataclasses.replace(SETTINGS, alpha="auto", observations="single")
     report = deblur_clip(
         spec,
         tmp_path / "out",
@@ -65,7 +65,7 @@ def test_only_the_views_a_run_reads_are_checked(scene, tmp_path):
         workers=1,
     )
     assert report.done == 1
-    out = tmp_path / "held-out"  # the default alpha predicts the right view: it is read
+    out = tmp_path / "default"  # the default alpha and observations use the right view
     with pytest.raises(InputError, match=str(path)):
         _run(scene, out, frames=[1], views=["left"], workers=1)
     assert not out.exists()

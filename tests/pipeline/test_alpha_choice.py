@@ -150,20 +150,45 @@ def test_held_out_is_auto_without_the_other_view(scene):
     settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
     motion = deblur_frame(scene, 1, settings=settings).motion  # a given motion of one view
     given = deblur_frame(scene, 1, settings=settings, motion=motion)
-    plain = deblur_frame(
-        scene, 1, settings=DeblurSettings(**FAST, motion_source="gt", alpha="auto")
+    plain = deblur_frame(  # a given motion also keeps the single observation
+        scene,
+        1,
+        settings=DeblurSettings(**FAST, motion_source="gt", alpha="auto", observations="single"),
     )
     assert given.alpha == plain.alpha
     np.testing.assert_array_equal(given.image, plain.image)
 
 
-def test_held_out_is_auto_where_the_other_view_is_observed(scene):
+def test_held_out_chooses_from_the_own_frame_then_adds_the_observations(scene, monkeypatch):
+    from stereodeblur.pipeline import alpha as alpha_module
+    from stereodeblur.pipeline import frame as frame_module
+
     observed = {**FAST, "motion_source": "gt", "observations": "other-view"}
-    held_out = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, alpha="held-out"))
     auto = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, alpha="auto"))
+    grid = (auto.frames["left"].alpha * 4,)  # one candidate above 'auto'
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
+    solved = []
+
+    def falling(image, other, *, border):  # the candidate above 'auto' predicts better
+        solved.append(image)
+        return 1.0 / len(solved)
+
+    monkeypatch.setattr(frame_module, "prediction_error", falling)
+    held_out = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, alpha="held-out"))
+    assert len(solved) == 4  # two candidates per view, solved from the view's own frame
     for view in ("left", "right"):
-        assert held_out.frames[view].alpha == auto.frames[view].alpha
-        np.testing.assert_array_equal(held_out.frames[view].image, auto.frames[view].image)
+        frame = held_out.frames[view]
+        assert frame.alpha == grid[0] and frame.observations == ("other-view",)
+        fixed = DeblurSettings(**observed, alpha=grid[0])
+        expected = deblur_stereo_frame(scene, 1, views=(view,), settings=fixed).frames[view]
+        np.testing.assert_array_equal(frame.image, expected.image)
+    single = deblur_stereo_frame(
+        scene,
+        1,
+        views=("left",),
+        settings=DeblurSettings(**FAST, motion_source="gt", alpha=grid[0], observations="single"),
+    )
+    np.testing.assert_array_equal(solved[1], np.clip(single.frames["left"].image, 0, 1))
 
 
 def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):

@@ -135,11 +135,12 @@ def test_without_a_scene_flow_each_frame_has_its_single_observation(scene):
     assert deblur_frame(scene, 1, settings=settings).observations == ()
 
 
-def test_given_motion_is_refused_and_bad_values_are_named(scene):
+def test_a_given_motion_keeps_the_single_observation_and_bad_values_are_named(scene):
     settings = DeblurSettings(**FAST, motion_source="gt", observations="other-view")
     single = DeblurSettings(**FAST, motion_source="gt", observations="single")
-    motion = deblur_frame(scene, 1, settings=single).motion
-    with pytest.raises(InputError, match="observations='other-view'"):
-        deblur_frame(scene, 1, settings=settings, motion=motion)
+    alone = deblur_frame(scene, 1, settings=single)
+    given = deblur_frame(scene, 1, settings=settings, motion=alone.motion)
+    assert given.observations == ()
+    np.testing.assert_array_equal(given.image, alone.image)
     with pytest.raises(InputError, match="observations must be one of"):
         DeblurSettings(observations="both")

@@ -2,6 +2,7 @@
 
 import threading
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -166,15 +167,20 @@ def test_the_last_frames_trust_compares_the_previous_frame_along_the_flow_to_it(
     assert result.trust[band].mean() > wrong[band].mean()
 
 
-def test_timings_name_the_stages(scene):
-    stereo = deblur_stereo_frame(scene, 1, settings=TRUE)
+@pytest.mark.parametrize("observations", ["single", "other-view"])
+def test_timings_name_the_stages(scene, observations):
+    settings = replace(TRUE, observations=observations)
+    stages = {"motion", "operator", "deconvolution"}
+    if observations != "single":
+        stages.add("observations")
+    stereo = deblur_stereo_frame(scene, 1, settings=settings)
     assert set(stereo.timings) == {"read", "motion"}
     shared = sum(stereo.timings.values())
     for result in stereo.frames.values():
-        assert set(result.timings) == {"motion", "operator", "deconvolution"}
+        assert set(result.timings) == stages
         assert result.timings["motion"] == shared / 2
-    alone = deblur_frame(scene, 1, settings=TRUE)
-    assert set(alone.timings) == {"motion", "operator", "deconvolution"}
+    alone = deblur_frame(scene, 1, settings=settings)
+    assert set(alone.timings) == stages
 
 
 def test_progress_names_frame_and_view(scene):

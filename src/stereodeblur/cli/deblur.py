@@ -129,7 +129,7 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
     """``deblur --sceneflow FILE``: one frame, its motion read from ``stereodeblur sceneflow``."""
     from ..io.outputs import check_output, mark_output
     from ..io.scene import SceneWriter
-    from ..pipeline import deblur_frame, neighbour_of, sceneflow_motion, with_boundary_flow
+    from ..pipeline import deblur_stereo_frame
     from ..sceneflow.storage import load_sceneflow
 
     if settings.motion_source != "sceneflow" or frames is None or len(frames) != 1:
@@ -148,16 +148,13 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
             f"frames are {tuple(source.shape)}"
         )
     check_output(args.output, [args.sceneflow], command="deblur")
-    neighbour = neighbour_of(index, source.num_frames)
     progress = progress_printer(args.quiet)
     writer = SceneWriter(args.output, source.info, overwrite=args.overwrite, protect=[source.root])
+    stereo = deblur_stereo_frame(
+        source, index, views=views, settings=settings, sceneflow=sceneflow, progress=progress
+    )
     for view in views:
-        motion = sceneflow_motion(sceneflow, index, neighbour, view)
-        motion = with_boundary_flow(motion, source, settings, source.read_frame(view, index))
-        result = deblur_frame(
-            source, index, view=view, settings=settings, motion=motion, progress=progress
-        )
-        writer.write_frame(view, index, result.image)
+        writer.write_frame(view, index, stereo.frames[view].image)
     mark_output(writer.root, "deblur")
     print(f"wrote {len(views)} frame(s) to {writer.root}")
     return 0

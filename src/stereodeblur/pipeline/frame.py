@@ -178,6 +178,7 @@ def deblur_view(
             weights,
             observations,
             progress,
+            terms,
         )
     else:
         terms = terms or data_terms(scene, window, view, operator, settings)
@@ -205,20 +206,43 @@ def deblur_view(
     )
 
 
+def _choice_settings(settings: DeblurSettings) -> DeblurSettings:
+    """``settings`` with the alpha its data terms are computed at before an alpha choice:
+    ``'auto'`` for ``'held-out'`` (its floor), the first grid alpha for ``'cross-view'``."""
+    if settings.alpha == "held-out":
+        return replace(settings, alpha="auto")
+    if settings.alpha == "cross-view":
+        return replace(settings, alpha=CROSS_VIEW_ALPHAS[0])
+    return settings
+
+
 def _alpha_choice_solve(
-    scene, window, view, blurred, operator, settings, other, weights, observations, progress
+    scene, window, view, blurred, operator, settings, other, weights, observations, progress, base
 ):
-    """Solve at the candidate alphas of ``settings.alpha`` and keep the one chosen by
-    predicting ``other`` (:func:`.alpha.candidates`, :func:`.alpha.searched`,
-    :func:`.alpha.choose`). Returns its data terms and result."""
+    """Solve at the candidate alphas of ``settings.alpha`` from the view's own blurred frame
+    and keep the one chosen by predicting ``other`` (:func:`.alpha.candidates`,
+    :func:`.alpha.searched`, :func:`.alpha.choose`); with ``observations``, solve once more
+    with them at that alpha (the other view is then held out of the choice even where it is
+    observed). ``base``: the data terms at :func:`_choice_settings`, if already computed.
+    Returns the data terms and the result."""
     rule = settings.alpha
-    fixed = replace(settings, alpha="auto" if rule == "held-out" else CROSS_VIEW_ALPHAS[0])
-    base = data_terms(scene, window, view, operator, fixed)
+    fixed = _choice_settings(settings)
+    if base is None:
+        base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
     runs, errors = [], []
     for alpha in candidates(rule, base.alpha):
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
+        result = solve(blurred, operator.operator, terms, fixed, weights=weights, progress=progress)
+        errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
+        runs.append((terms, result))
+        if searched(rule, errors):
+            break
+    terms, result = runs[choose(errors, rule)]
+    if observations:
+        report(progress, f"alpha {terms.alpha:g} with the further observations")
+        terms = replace(terms, update=copy.deepcopy(base.update))
         result = solve(
             blurred,
             operator.operator,
@@ -228,11 +252,7 @@ def _alpha_choice_solve(
             observations=observations,
             progress=progress,
         )
-        errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
-        runs.append((terms, result))
-        if searched(rule, errors):
-            break
-    return runs[choose(errors, rule)]
+    return terms, result
 
 
 def needs_stereo_pass(settings: DeblurSettings) -> bool:
@@ -256,20 +276,21 @@ def deblur_frame(
 
     ``weights`` replaces the initial data weights chosen by ``settings``; ``motion``
     (from :func:`~.motion.frame_motion` with the same settings) skips the motion
-    estimation; with either, ``alpha='held-out'`` is ``'auto'`` (the other view is not
-    known). Reports progress as ``"frame {index} {view}: ..."``.
+    estimation; with either, ``alpha='held-out'`` is ``'auto'`` and the view has its single
+    observation (the other view and the neighbours' motion are not known).
+    Reports progress as ``"frame {index} {view}: ..."``.
     """
     settings = settings or DeblurSettings()
     (view,) = check_views((view,))
-    if settings.alpha == "held-out" and (motion is not None or weights is not None):
-        settings = replace(settings, alpha="auto")  # the other view is not known
+    if motion is not None or weights is not None:  # one view's: the other view is not known
+        alpha = "auto" if settings.alpha == "held-out" else settings.alpha
+        settings = replace(settings, alpha=alpha, observations="single")
     if needs_stereo_pass(settings):
         if motion is not None or weights is not None:  # it needs both views' motion
-            name = "alpha" if settings.alpha == "cross-view" else "observations"
             raise InputError(
-                f"{name}={getattr(settings, name)!r} computes the motion of both views itself: "
+                "alpha='cross-view' computes the motion of both views itself: "
                 "leave motion and weights unset (or use deblur_stereo_frame)",
-                parameter=name,
+                parameter="alpha",
             )
         stereo = deblur_stereo_frame(
             scene, index, views=(view,), settings=settings, progress=progress
@@ -340,7 +361,8 @@ def deblur_stereo_frame(
                 operators[other], motion.views[other], window.blurred(other), other
             )
     if "other-view" in kinds:  # each view's data weights weigh it as the other's observation
-        terms = {v: data_terms(scene, window, v, operators[v], settings) for v in needed}
+        fixed = _choice_settings(settings)
+        terms = {v: data_terms(scene, window, v, operators[v], fixed) for v in needed}
     weights = {v: t.weights for v, t in terms.items()}
     frames = {}
     for view in views:
@@ -357,7 +379,7 @@ def deblur_stereo_frame(
             progress=prefixed(progress, f"frame {index} {view}: "),
             operator=operators.get(view),
             other=others.get(view),
-            terms=None if cross_view else terms.get(view),
+            terms=terms.get(view),
             observations=tuple(observations),
         )
     return StereoFrameResult(index, frames, motion, timings)

@@ -72,11 +72,9 @@ def observation_kinds(settings: DeblurSettings) -> tuple[str, ...]:
 
 def predicts_other_view(settings: DeblurSettings) -> bool:
     """Whether each view's alpha is chosen by predicting the other view: ``'cross-view'``,
-    and ``'held-out'`` where the motion has a disparity (not ``'initial-flow'``) and the
-    other view is not observed (then it is not held out)."""
+    and ``'held-out'`` where the motion has a disparity (not ``'initial-flow'``)."""
     if settings.alpha == "held-out":
-        other_observed = "other-view" in observation_kinds(settings)
-        return settings.motion_source != "initial-flow" and not other_observed
+        return settings.motion_source != "initial-flow"
     return settings.alpha == "cross-view"
 
 
