@@ -119,10 +119,11 @@ GATE_MARGIN = 0.1
 # split, 40 scenes at 320x240: 28.50 dB against 27.99 dB; calibrate_defaults_test_320x240.md).
 MONOCULAR_BOUNDARY_WEIGHTS = "adaptive"
 # The other view's blurred frame as a second data term (alpha chosen from the view's own):
-# train split (40 scenes at 320x240) +0.44 / +0.27 dB over the single observation (true motion /
-# scene flow), worst -0.33 / -0.66 dB; bench paper's objects +0.40 / +0.30 dB, planar +0.67 /
-# +0.75 dB (noiseless / noisy; results/paper_observations_640x480.md, issue 13). 'single' is
-# the paper's.
+# train split (40 scenes, 320x240) +0.44 / +0.27 dB over the single observation (true motion /
+# scene flow), worst -0.33 / -0.66 dB (results/observations_train_320x240.md); bench paper's
+# objects +0.40 / +0.30 dB, planar +0.67 / +0.75 dB (noiseless / noisy;
+# results/paper_observations_640x480_other_view.md); then the test split +0.37 / +0.16 dB
+# (calibrate_defaults_test_320x240.md); 1.3x the time. 'single' is the paper's.
 DEFAULT_OBSERVATIONS = "other-view"
 # Residual scale of the further observations' Cauchy weights: without them they lose 1-4 dB
 # with the estimated scene flow, with 0.01 they gain 0.2-0.3 dB (issue 13 study,
