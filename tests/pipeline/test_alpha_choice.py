@@ -191,6 +191,17 @@ def test_held_out_chooses_from_the_own_frame_then_adds_the_observations(scene, m
     np.testing.assert_array_equal(solved[1], np.clip(single.frames["left"].image, 0, 1))
 
 
+def test_cross_view_chooses_as_without_the_observed_other_view(scene):
+    observed = {**FAST, "motion_source": "gt", "alpha": "cross-view"}
+    both = deblur_stereo_frame(
+        scene, 1, settings=DeblurSettings(**observed, observations="other-view")
+    )
+    own = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, observations="single"))
+    for view in ("left", "right"):
+        assert both.frames[view].alpha == own.frames[view].alpha
+        assert both.frames[view].observations == ("other-view",)
+
+
 def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
