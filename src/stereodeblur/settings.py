@@ -217,12 +217,12 @@ class DeblurSettings:
         masked experiment, Table 2), on top of ``boundary_weights``.
     observations : {'single', 'other-view', 'neighbours', 'all'}
         The blurred images each view's sharp frame is estimated from: ``'single'`` its own
-        (the paper's); ``'other-view'`` (default) also the other view's frame, ``'neighbours'``
-        also the
-        view's frames before and after, ``'all'`` both
-        (:mod:`stereodeblur.pipeline.observations`;
-        weighted by their residual, :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow:
-        with ``motion_source='initial-flow'`` every frame has its single observation.
+        (the paper's); ``'other-view'`` (default) also the other view's frame,
+        ``'neighbours'`` also the view's frames before and after, ``'all'`` both
+        (:mod:`stereodeblur.pipeline.observations`; weighted by their residual,
+        :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow: with
+        ``motion_source='initial-flow'`` or a given motion of one view every frame has its
+        single observation.
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
