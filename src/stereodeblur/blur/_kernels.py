@@ -360,6 +360,17 @@ def _reaches(px, py, n, table, height, width, cubic):
 
 
 @njit(**_JIT)
+def _copy_row(item, indptr, indices, values, out_idx, out_val, pos):
+    """Row ``item`` of a CSR matrix appended at ``pos``: ``(out_idx, out_val, count)``."""
+    a = indptr[item]
+    c = indptr[item + 1] - a
+    out_idx, out_val = _grow(out_idx, out_val, pos, c)
+    out_idx[pos : pos + c] = indices[a : a + c]
+    out_val[pos : pos + c] = values[a : a + c]
+    return out_idx, out_val, c
+
+
+@njit(**_JIT)
 def _assemble_range(
     first,
     last,
@@ -404,66 +415,37 @@ def _assemble_range(
     pos = np.int64(0)  # not a literal: one compiled version of the callees
     for item in range(first, last):
         if some_taken and take[item]:
-            a = other_indptr[item]
-            c = other_indptr[item + 1] - a
-            out_idx, out_val = _grow(out_idx, out_val, pos, c)
-            out_idx[pos : pos + c] = other_indices[a : a + c]
-            out_val[pos : pos + c] = other_values[a : a + c]
-            counts[item - first] = c
-            pos += c
-            continue
-        out_idx, out_val = _grow(out_idx, out_val, pos, (16 if cubic else 4) * n)
-        _item_positions(
-            kind,
-            item,
-            px,
-            py,
-            homographies,
-            labels,
-            visible,
-            item_x,
-            item_y,
-            item_src,
-            flows,
-            fractions,
-        )
-        if restricted and not _reaches(px, py, n, table, height, width, cubic):
-            counts[item - first] = 0
-            continue
-        if cubic:
-            c = _merge_cubic_taps(
+            out_idx, out_val, c = _copy_row(
+                item, other_indptr, other_indices, other_values, out_idx, out_val, pos
+            )
+        else:
+            out_idx, out_val = _grow(out_idx, out_val, pos, (16 if cubic else 4) * n)
+            _item_positions(
+                kind,
+                item,
                 px,
                 py,
-                n,
-                drop_outside,
-                height,
-                width,
-                divisor,
-                acc,
-                mark,
-                taps,
-                out_idx,
-                out_val,
-                pos,
+                homographies,
+                labels,
+                visible,
+                item_x,
+                item_y,
+                item_src,
+                flows,
+                fractions,
             )
-            counts[item - first] = c
-            pos += c
-            continue
-        c = _merge_taps(
-            px,
-            py,
-            n,
-            drop_outside,
-            height,
-            width,
-            divisor,
-            acc,
-            mark,
-            touched,
-            out_idx,
-            out_val,
-            pos,
-        )
+            if restricted and not _reaches(px, py, n, table, height, width, cubic):
+                c = 0
+            elif cubic:
+                c = _merge_cubic_taps(
+                    px, py, n, drop_outside, height, width, divisor, acc, mark, taps, out_idx,
+                    out_val, pos,
+                )  # fmt: skip
+            else:
+                c = _merge_taps(
+                    px, py, n, drop_outside, height, width, divisor, acc, mark, touched, out_idx,
+                    out_val, pos,
+                )  # fmt: skip
         counts[item - first] = c
         pos += c
     return counts, out_idx[:pos], out_val[:pos]

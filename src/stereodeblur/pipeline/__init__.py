@@ -56,7 +56,6 @@ from .motion import (
     stereo_motion,
     to_right_view,
     view_dense_flow,
-    with_boundary_flow,
 )
 from .operator import (
     GateTrusts,
@@ -119,5 +118,4 @@ __all__ = [
     "view_dense_flow",
     "view_operator",
     "visibility",
-    "with_boundary_flow",
 ]

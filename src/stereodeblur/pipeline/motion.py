@@ -312,14 +312,6 @@ def dense_flow(scene: StereoScene, index: int, view: str, blurred=None) -> tuple
     return view_dense_flow(window, view)
 
 
-def with_boundary_flow(motion: FrameMotion, scene: StereoScene, settings, blurred=None):
-    """``motion`` with the view's :func:`dense_flow` as ``boundary_flow`` if ``settings`` use it."""
-    if not uses_boundary_flow(settings):
-        return motion
-    flow = dense_flow(scene, motion.index, motion.view, blurred)
-    return replace(motion, boundary_flow=flow)
-
-
 def check_motion(motion: FrameMotion, window: FrameWindow, view: str) -> None:
     """An :class:`InputError` unless ``motion`` is the motion of ``view`` in ``window``."""
     if (motion.index, motion.neighbour, motion.view) != (window.index, window.neighbour, view):
