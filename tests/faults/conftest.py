@@ -21,3 +21,12 @@ def reference(tiny_scene, tmp_path_factory):
     result = run_cli("deblur", tiny_scene, "-o", output, "--workers", "1", "-q", *FAST)
     assert result.code == 0, result.stderr
     return output
+
+
+@pytest.fixture(scope="session")
+def slow_scene(tmp_path_factory):
+    """Two 200x150 frames: a signal sent once a run has started lands before its first frame
+    is written (about 2 s later with ``FAST``, 10 s with ``SLOW``; on the tiny clip a warm
+    worker can write a frame first)."""
+    scene = make_planar_scene("long_exposure_roll", size=(200, 150), num_frames=2, num_samples=32)
+    return write_rendered_scene(scene, tmp_path_factory.mktemp("slow") / "scene")

@@ -16,6 +16,8 @@ NUM_FRAMES = 6
 SIZE = (48, 32)
 # Ground-truth motion, one IRLS round of two CG steps: the tests are about the plumbing.
 FAST = ["--motion-source", "gt", "--irls", "1", "--cg", "2", "--samples", "8"]
+# Seconds per frame on the 200x150 ``slow_scene``: a signal lands before the first frame.
+SLOW = ["--motion-source", "gt", "--alpha", "0.001", "--irls", "8", "--cg", "100"]
 MARK = "STEREODEBLUR_FAULT_TEST"
 
 

@@ -7,7 +7,14 @@ import signal
 import pytest
 
 from stereodeblur.clip import read_run_log
-from tests.faults.helpers import FAST, frame_files, run_cli, same_frames, start_run, wait_until
+from tests.faults.helpers import (
+    FAST,
+    frame_files,
+    run_cli,
+    same_frames,
+    start_run,
+    wait_until,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -43,16 +50,18 @@ def test_second_run_is_refused_while_the_first_runs(tiny_scene, reference, tmp_p
     assert [e["event"] for e in events].count("start") == 1  # the refused run wrote nothing
 
 
-def test_an_interrupted_run_keeps_the_frames_of_another_run(tiny_scene, reference, tmp_path):
+def test_an_interrupted_run_keeps_the_frames_of_another_run(slow_scene, tmp_path):
+    reference = tmp_path / "reference"
+    assert run_cli("deblur", slow_scene, "-o", reference, "-q", *FAST).code == 0
     out = tmp_path / "out"
-    done = run_cli("deblur", tiny_scene, "-o", out, "--frames", "0", "-q", *FAST)
+    done = run_cli("deblur", slow_scene, "-o", out, "--frames", "0", "-q", *FAST)
     assert done.code == 0, done.stderr
     kept = {name: (out / name).read_bytes() for name in frame_files(out)}
     assert len(kept) == 2
-    second = start_run("deblur", tiny_scene, "-o", out, "--frames", "2:4", "-q", *FAST)
+    second = start_run("deblur", slow_scene, "-o", out, "--frames", "1", "-q", *FAST)
     try:
         wait_until(_started(out, 2), 60, "the second run to start", second.process)
-        os.killpg(second.process.pid, signal.SIGINT)  # before its first frame is written
+        os.killpg(second.process.pid, signal.SIGINT)  # about 2 s before its first frame
         assert second.process.wait(timeout=60) == 130
     finally:
         if second.process.poll() is None:
@@ -61,6 +70,6 @@ def test_an_interrupted_run_keeps_the_frames_of_another_run(tiny_scene, referenc
         second.process.stderr.close()
     assert {name: (out / name).read_bytes() for name in kept} == kept
     assert (out / "camera.json").is_file() and (out / "run-log.jsonl").is_file()
-    result = run_cli("deblur", tiny_scene, "-o", out, "-q", *FAST)
+    result = run_cli("deblur", slow_scene, "-o", out, "-q", *FAST)
     assert result.code == 0, result.stderr
     same_frames(out, reference)

@@ -7,9 +7,9 @@ import time
 
 import pytest
 
-from stereodeblur.synth.planar import make_planar_scene, write_rendered_scene
 from tests.faults.helpers import (
     FAST,
+    SLOW,
     run_cli,
     same_frames,
     start_run,
@@ -66,21 +66,9 @@ def test_killed_main_process_leaves_no_worker_and_resumes(tiny_scene, reference,
     assert not list(out.rglob("*.tmp"))
 
 
-@pytest.fixture(scope="module")
-def slow_scene(tmp_path_factory):
-    """Two frames that take seconds each: the signal lands before the first is written.
-
-    On the tiny clip a warm worker can write a frame between the run log's appearance and the
-    signal, and the folder then rightly stays.
-    """
-    scene = make_planar_scene("long_exposure_roll", size=(200, 150), num_frames=2, num_samples=32)
-    return write_rendered_scene(scene, tmp_path_factory.mktemp("slow") / "scene")
-
-
 def test_sigterm_before_the_first_frame_removes_the_folder_it_created(slow_scene, tmp_path):
     out = tmp_path / "out"
-    settings = ["--motion-source", "gt", "--alpha", "0.001", "--irls", "8", "--cg", "100"]
-    code, err = _kill_when_workers_are_busy(slow_scene, out, signal.SIGTERM, settings)
+    code, err = _kill_when_workers_are_busy(slow_scene, out, signal.SIGTERM, SLOW)
     assert code == 130, err
     assert not out.exists()
     assert "run-log" not in err  # no pointer to a file that is gone
