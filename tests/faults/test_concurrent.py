@@ -7,14 +7,7 @@ import signal
 import pytest
 
 from stereodeblur.clip import read_run_log
-from tests.faults.helpers import (
-    FAST,
-    frame_files,
-    run_cli,
-    same_frames,
-    start_run,
-    wait_until,
-)
+from tests.faults.helpers import FAST, frame_files, run_cli, same_frames, start_run, wait_until
 
 pytestmark = pytest.mark.slow
 
