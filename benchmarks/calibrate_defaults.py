@@ -287,22 +287,31 @@ def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
     }
 
 
-def motion_for(scene, source: str, motions: dict, seconds: dict):
-    """Frame 1's motion from ``source``, computed once per scene into ``motions`` (its time
-    into ``seconds``)."""
+def motion_for(scene, column: Column, motions: dict, seconds: dict):
+    """Frame 1's motion for ``column``: its source's with the default settings but the
+    column's superpixels and scene-flow settings, computed once per scene and estimator into
+    ``motions`` (the default estimator's time into ``seconds``)."""
     import warnings
+    from dataclasses import replace
 
     from stereodeblur.pipeline import frame_motion
 
-    if source not in motions:
+    own = column.settings()
+    source = column.motion_source
+    key = (source, own.num_segments, own.sceneflow)
+    if key not in motions:
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            settings = Column("default", source).settings()
+            settings = replace(
+                Column("default", source).settings(),
+                num_segments=own.num_segments,
+                sceneflow=own.sceneflow,
+            )
             blurred = scene.read_frame("left", FRAME)
-            motions[source] = frame_motion(scene, FRAME, "left", settings, blurred)
-        seconds[source] = time.perf_counter() - start
-    return motions[source]
+            motions[key] = frame_motion(scene, FRAME, "left", settings, blurred)
+        seconds.setdefault(source, time.perf_counter() - start)
+    return motions[key]
 
 
 def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seconds: dict) -> dict:
@@ -313,7 +322,7 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
     path = cache / f"{column.motion_source}_{column.key}.json"
     data = _cached(path, signature)
     if data is None:
-        motion = motion_for(scene, column.motion_source, motions, seconds)
+        motion = motion_for(scene, column, motions, seconds)
         data = run_column(scene, column, motion, truth) | {"signature": signature}
         atomic_write_text(path, json.dumps(data, indent=1))
         name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
@@ -350,7 +359,7 @@ def run_scene(task) -> dict:
         signature = _signature(Column("default", source).settings()) + FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:
-            motion = motion_for(scene, source, motion_cache, motion_seconds)
+            motion = motion_for(scene, Column("default", source), motion_cache, motion_seconds)
             data = frame_features(scene, motion, source, blurred)
             data["signature"] = signature
             atomic_write_text(path, json.dumps(data, indent=1))
