@@ -39,6 +39,7 @@ import scipy.sparse as sp
 from stereodeblur.blur.homography import homography_blur
 from stereodeblur.blur.operator import SparseBlur
 from stereodeblur.blur.visibility import HIDDEN, hidden_fraction, sceneflow_visibility
+from stereodeblur.cli.base import add_size, size_text
 from stereodeblur.deconv.irls import deblur_irls
 from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view
 from stereodeblur.deconv.weights import hidden_weights
@@ -71,7 +72,8 @@ def hidden_samples(sceneflow, visible, fractions, setup) -> tuple[sp.csr_matrix,
         if not hidden.any():
             continue
         x, y = xs[hidden].astype(np.float64), ys[hidden].astype(np.float64)
-        q = np.einsum("nij,jn->ni", homographies[sceneflow.labels[hidden], k], [x, y, 1 + 0 * x])
+        points = np.stack([x, y, np.ones_like(x)])
+        q = np.einsum("nij,jn->ni", homographies[sceneflow.labels[hidden], k], points)
         px = np.clip(q[:, 0] / q[:, 2], 0, width - 1)
         py = np.clip(q[:, 1] / q[:, 2], 0, height - 1)
         x0 = np.minimum(np.floor(px).astype(np.int64), width - 2)
@@ -137,12 +139,12 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
             psnr(result.image, truth, border=border),
             masked_mse(result.image, truth, mixed, border=border),
         )
+    inner = np.zeros_like(mixed)
+    inner[border:-border, border:-border] = True
     showing = share > 0
     for key, op, data in (("model today", ops["today"], blurred),
                           ("model oracle", ops["dropped"], blurred - fill)):  # fmt: skip
         error = ((op.forward(truth) - data) ** 2).mean(axis=-1)
-        inner = np.zeros_like(mixed)
-        inner[border:-border, border:-border] = True
         out[key] = tuple(float(error[inner & mixed & m].mean()) for m in (showing, ~showing))
     return out
 
@@ -187,21 +189,20 @@ def report(results: dict, argv, minutes: float) -> list[str]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
-    parser.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default 320x240)")
+    add_size(parser, (320, 240))
     parser.add_argument("--scenes", default=None, help="comma-separated (default: the objects)")
     parser.add_argument("--output", default=None, help="Markdown (default: print only)")
     args = parser.parse_args(argv)
-    size = tuple(int(v) for v in args.size.lower().split("x"))
     names = args.scenes.split(",") if args.scenes else [
         n + s for n in OBJECT_SCENES for s in ("", "_noisy")
     ]  # fmt: skip
-    folder = Path(args.work) / args.size / "scenes"
+    folder = Path(args.work) / size_text(args.size) / "scenes"
     settings = DeblurSettings(
         motion_source="gt", boundary_weights="none", observations="single",
         interpolation="bilinear", alpha=PAPER_ALPHA,
     )  # fmt: skip
     start = time.perf_counter()
-    paper_bench.render_missing(folder, names, size)
+    paper_bench.render_missing(folder, names, args.size)
     results = {}
     for name in names:
         results[name] = evaluate(folder / name, name, settings)

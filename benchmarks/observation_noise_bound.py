@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stereodeblur.cli.base import add_size, size_text
 from stereodeblur.deconv.irls import Observation
 from stereodeblur.evaluation import paper_bench
 from stereodeblur.evaluation.metrics import border_for, masked_mse, psnr
@@ -118,15 +119,14 @@ def report(results: dict, argv, minutes: float) -> list[str]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
-    parser.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default 320x240)")
+    add_size(parser, (320, 240))
     parser.add_argument("--scenes", default=None, help="comma-separated (default: the objects)")
     parser.add_argument("--output", default=None, help="Markdown (default: print only)")
     args = parser.parse_args(argv)
-    size = tuple(int(v) for v in args.size.lower().split("x"))
     names = args.scenes.split(",") if args.scenes else list(OBJECT_SCENES)
-    folder = Path(args.work) / args.size / "scenes"
+    folder = Path(args.work) / size_text(args.size) / "scenes"
     start = time.perf_counter()
-    paper_bench.render_missing(folder, [n + s for n in names for s in ("", "_noisy")], size)
+    paper_bench.render_missing(folder, [n + s for n in names for s in ("", "_noisy")], args.size)
     results = {}
     for name in names:
         for source in ("gt", "sceneflow"):
