@@ -149,6 +149,49 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
     return out
 
 
+def score_rows(results: dict, rows, first=None) -> list[str]:
+    """Markdown rows ``PSNR / gt-mixed MSE x 1000`` of each scene of ``results`` (``{name:
+    {row: (psnr, mse)}}``) in the order ``rows``, and their mean; ``first``: cells per name put
+    before them (empty in the mean row)."""
+    first = first or {}
+    lines = []
+    for name, r in results.items():
+        cells = [*first.get(name, []), *(f"{r[k][0]:.2f} / {1000 * r[k][1]:.2f}" for k in rows)]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    means = [
+        f"{np.mean([r[k][0] for r in results.values()]):.2f} / "
+        f"{1000 * np.mean([r[k][1] for r in results.values()]):.2f}"
+        for k in rows
+    ]
+    blanks = "| " * len(next(iter(first.values()), []))
+    lines.append("| **mean** | " + blanks + " | ".join(means) + " |")
+    return lines
+
+
+def parse(argv=None, description: str = "") -> argparse.Namespace:
+    """The bound scripts' options: ``--work`` (bench paper's), ``--size``, ``--scenes``,
+    ``--output``."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
+    add_size(parser, (320, 240))
+    parser.add_argument("--scenes", default=None, help="comma-separated (default: the objects)")
+    parser.add_argument("--output", default=None, help="Markdown (default: print only)")
+    return parser.parse_args(argv)
+
+
+def scenes_folder(args) -> Path:
+    """Where bench paper keeps the scenes of ``args.size`` under ``args.work``."""
+    return Path(args.work) / size_text(args.size) / "scenes"
+
+
+def finish(lines: list[str], args) -> int:
+    """Print the report and write it to ``args.output`` if given."""
+    print("\n".join(lines))
+    if args.output:
+        atomic_write_text(Path(args.output), "\n".join(lines) + "\n")
+    return 0
+
+
 def report(results: dict, argv, minutes: float) -> list[str]:
     lines = [
         "# What a hidden-surface fill could gain at most: bench paper's object scenes",
@@ -162,15 +205,8 @@ def report(results: dict, argv, minutes: float) -> list[str]:
         "| scene | hidden px | " + " | ".join(ROWS) + " |",
         "|---|---|" + "---|" * len(ROWS),
     ]
-    for name, r in results.items():
-        cells = [f"{r[k][0]:.2f} / {1000 * r[k][1]:.2f}" for k in ROWS]
-        lines.append(f"| {name} | {100 * r['hidden_share']:.1f} % | " + " | ".join(cells) + " |")
-    means = [
-        f"{np.mean([r[k][0] for r in results.values()]):.2f} / "
-        f"{1000 * np.mean([r[k][1] for r in results.values()]):.2f}"
-        for k in ROWS
-    ]
-    lines.append("| **mean** | | " + " | ".join(means) + " |")
+    shares = {name: [f"{100 * r['hidden_share']:.1f} %"] for name, r in results.items()}
+    lines += score_rows(results, ROWS, shares)
     lines += [
         "",
         "Blur model error `|A I - B|^2` x 1000 at the true sharp frame, in mixed pixels that show "
@@ -187,16 +223,11 @@ def report(results: dict, argv, minutes: float) -> list[str]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
-    add_size(parser, (320, 240))
-    parser.add_argument("--scenes", default=None, help="comma-separated (default: the objects)")
-    parser.add_argument("--output", default=None, help="Markdown (default: print only)")
-    args = parser.parse_args(argv)
+    args = parse(argv, __doc__.split("\n", 1)[0])
     names = args.scenes.split(",") if args.scenes else [
         n + s for n in OBJECT_SCENES for s in ("", "_noisy")
     ]  # fmt: skip
-    folder = Path(args.work) / size_text(args.size) / "scenes"
+    folder = scenes_folder(args)
     settings = DeblurSettings(
         motion_source="gt", boundary_weights="none", observations="single",
         interpolation="bilinear", alpha=PAPER_ALPHA,
@@ -207,11 +238,7 @@ def main(argv=None) -> int:
     for name in names:
         results[name] = evaluate(folder / name, name, settings)
         print(name, " ".join(f"{results[name][k][0]:.2f}" for k in ROWS), flush=True)
-    lines = report(results, sys.argv[1:], (time.perf_counter() - start) / 60)
-    print("\n".join(lines))
-    if args.output:
-        atomic_write_text(Path(args.output), "\n".join(lines) + "\n")
-    return 0
+    return finish(report(results, sys.argv[1:], (time.perf_counter() - start) / 60), args)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,6 @@ a second observation of the same exposure can add by averaging noise; + both.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 import warnings
@@ -25,11 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from stereodeblur.cli.base import add_size, size_text
 from stereodeblur.deconv.irls import Observation
 from stereodeblur.evaluation import paper_bench
 from stereodeblur.evaluation.metrics import border_for, masked_mse, psnr
-from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import (
     build_view_operator,
@@ -42,6 +39,10 @@ from stereodeblur.pipeline.alpha import other_view
 from stereodeblur.pipeline.observations import NamedObservation, view_observations
 from stereodeblur.settings import DeblurSettings
 from stereodeblur.synth.objects import NOISE_SIGMA, OBJECT_SCENES
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from hidden_fill_bound import finish, parse, scenes_folder, score_rows  # noqa: E402
 
 ROWS = ("own frame only", "+ other view (default)", "+ second draw", "+ both")
 FRAME = 1
@@ -101,30 +102,17 @@ def report(results: dict, argv, minutes: float) -> list[str]:
         "",
     ]
     for source in ("gt", "sceneflow"):
-        part = {name: r for (name, s), r in results.items() if s == source}
+        part = {f"{name}_noisy": r for (name, s), r in results.items() if s == source}
         lines += [f"**{source}**", "", "| scene | " + " | ".join(ROWS) + " |"]
         lines.append("|---|" + "---|" * len(ROWS))
-        for name, r in part.items():
-            cells = [f"{r[k][0]:.2f} / {1000 * r[k][1]:.2f}" for k in ROWS]
-            lines.append(f"| {name}_noisy | " + " | ".join(cells) + " |")
-        means = [
-            f"{np.mean([r[k][0] for r in part.values()]):.2f} / "
-            f"{1000 * np.mean([r[k][1] for r in part.values()]):.2f}"
-            for k in ROWS
-        ]
-        lines += ["| **mean** | " + " | ".join(means) + " |", ""]
+        lines += [*score_rows(part, ROWS), ""]
     return lines
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
-    add_size(parser, (320, 240))
-    parser.add_argument("--scenes", default=None, help="comma-separated (default: the objects)")
-    parser.add_argument("--output", default=None, help="Markdown (default: print only)")
-    args = parser.parse_args(argv)
+    args = parse(argv, __doc__.split("\n", 1)[0])
     names = args.scenes.split(",") if args.scenes else list(OBJECT_SCENES)
-    folder = Path(args.work) / size_text(args.size) / "scenes"
+    folder = scenes_folder(args)
     start = time.perf_counter()
     paper_bench.render_missing(folder, [n + s for n in names for s in ("", "_noisy")], args.size)
     results = {}
@@ -132,11 +120,7 @@ def main(argv=None) -> int:
         for source in ("gt", "sceneflow"):
             results[name, source] = r = evaluate(folder, name, source)
             print(name, source, " ".join(f"{r[k][0]:.2f}" for k in ROWS), flush=True)
-    lines = report(results, sys.argv[1:], (time.perf_counter() - start) / 60)
-    print("\n".join(lines))
-    if args.output:
-        atomic_write_text(Path(args.output), "\n".join(lines) + "\n")
-    return 0
+    return finish(report(results, sys.argv[1:], (time.perf_counter() - start) / 60), args)
 
 
 if __name__ == "__main__":
