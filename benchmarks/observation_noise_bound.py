@@ -74,7 +74,8 @@ def evaluate(folder: Path, name: str, source: str) -> dict:
     truth = scene.read_gt_sharp("left", FRAME)
     mixed = scene.read_gt_mixed("left", FRAME)
     border = border_for(truth.shape[1])
-    held_out = other_view(operators["right"], motions["right"], window.blurred("right"), "right")
+    blurred = window.blurred("right")
+    held_out = other_view(motions["left"], operators["right"], blurred, weights["right"], "right")
     out = {}
     for key, observations in rows.items():
         with warnings.catch_warnings():
