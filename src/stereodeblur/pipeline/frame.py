@@ -369,7 +369,8 @@ def deblur_stereo_frame(
         terms = {v: data_terms(scene, window, v, operators[v], fixed) for v in needed}
     weights = {v: t.weights for v, t in terms.items()}
     if cross_view:
-        for view, other in zip(VIEWS, VIEWS[::-1], strict=True):
+        for view in views:
+            other = next(v for v in VIEWS if v != view)
             others[view] = other_view(
                 motion.views[view], operators[other], window.blurred(other), weights[other], other
             )

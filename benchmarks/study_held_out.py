@@ -1,0 +1,199 @@
+"""How `--alpha held-out` chooses, and how it could: every grid alpha on the train split (issue 12).
+
+Run from the repository root after ``calibrate_defaults.py`` has computed the grid columns of
+the same split and size (their PSNRs score the choices)::
+
+    python benchmarks/study_held_out.py --split train --scenes 40 --jobs 2
+
+For every scene and motion source, frame 1 of the left view is deblurred from its own frame
+at every alpha of :data:`calibrate_defaults.ALPHAS` (the default settings otherwise), and each
+solution predicts the right view's blurred frame through the right view's observation of the
+left one (:func:`stereodeblur.pipeline.alpha.prediction_error`). With the floor (the
+``'auto'`` alpha) and the noise estimate of the data terms this gives each rule's choice on the
+grid, the floor snapped to the nearest grid alpha: ``held-out`` (upwards from the floor while
+the error falls), with its noise gate at several ratios
+(:func:`stereodeblur.pipeline.alpha.below_floor`), and without the gate. Each choice is scored
+with the PSNR of the grid column ``alpha=A`` of ``calibrate_defaults.py`` (the chosen alpha solved
+with the default's observations), as that script's checks score the default. Written:
+``benchmarks/results/held_out_SPLIT_WxH.md`` (and the errors, ``.json``); the errors are cached
+under ``--work``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+import time
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import calibrate_defaults as protocol  # noqa: E402
+
+from stereodeblur.io.outputs import atomic_write_text  # noqa: E402
+
+GRID = protocol.ALPHAS
+RATIOS = (None, 2.0, 4.0, 8.0, 16.0, 24.0)
+"""Noise-gate ratios compared (None: no gate), :data:`~stereodeblur.settings.HELD_OUT_NOISE_RATIO`
+among them."""
+VIEWS = ("left", "right")
+
+
+def grid_errors(task) -> tuple[str, dict]:
+    """Prediction error of each grid alpha's own-frame solution, the floor and the noise, per
+    motion source, for one scene."""
+    from stereodeblur.evaluation.metrics import border_for
+    from stereodeblur.io.scene import open_scene
+    from stereodeblur.pipeline import (
+        build_view_operator,
+        data_terms,
+        deblur_view,
+        read_window,
+        stereo_motion,
+    )
+    from stereodeblur.pipeline.alpha import other_view, prediction_error
+
+    kind, seed, size, work = task
+    root = protocol.ensure_scene(kind, seed, size, work)
+    scene = open_scene(root)
+    out = {}
+    for source in protocol.MOTIONS:
+        column = protocol.Column("default", source)
+        settings = column.settings()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            given = protocol.motion_for(scene, column, {}, {}).sceneflow
+            window = read_window(scene, protocol.FRAME, VIEWS, settings)
+            motions = stereo_motion(
+                scene, window, VIEWS, settings, sceneflow=given if source == "sceneflow" else None
+            ).views
+            operators = {v: build_view_operator(window, motions[v], settings) for v in VIEWS}
+            auto = replace(settings, alpha="auto")
+            terms = {v: data_terms(scene, window, v, operators[v], auto) for v in VIEWS}
+            other = other_view(
+                motions["left"], operators["right"], window.blurred("right"),
+                terms["right"].weights, "right",
+            )  # fmt: skip
+            border = border_for(window.blurred("left").shape[1])
+            errors = []
+            for alpha in GRID:
+                fixed = replace(settings, alpha=alpha, observations="single")
+                left = replace(
+                    terms["left"], alpha=alpha, update=copy.deepcopy(terms["left"].update)
+                )
+                image = deblur_view(
+                    scene, window, motions["left"], fixed, operator=operators["left"], terms=left
+                ).image
+                errors.append(prediction_error(image, other, border=border))
+        out[source] = {
+            "errors": errors,
+            "floor": terms["left"].alpha,
+            "sigma": terms["left"].noise_sigma,
+        }
+    return root.name, out
+
+
+def snap(alpha: float) -> int:
+    """Index of the grid alpha nearest to ``alpha`` (in log)."""
+    return int(np.argmin([abs(np.log(alpha / a)) for a in GRID]))
+
+
+def choice(entry: dict, ratio: float | None) -> int:
+    """``held-out``'s grid index: upwards from the snapped floor while the error falls; then,
+    with a noise gate of ``ratio``, downwards to the noise rule's alpha while it falls if the
+    floor predicts best within ``ratio * 2 sigma^2``."""
+    from stereodeblur.deconv.noise import alpha_from_sigma
+
+    errors, floor = entry["errors"], snap(entry["floor"])
+    best = floor
+    while best + 1 < len(GRID) and errors[best + 1] < errors[best]:
+        best += 1
+    noise = snap(alpha_from_sigma(entry["sigma"]))
+    gated = ratio is not None and best == floor and errors[best] < ratio * 2 * entry["sigma"] ** 2
+    while gated and best > noise and errors[best - 1] < errors[best]:
+        best -= 1
+    return best
+
+
+def grid_psnrs(work: Path, name: str, source: str) -> np.ndarray | None:
+    """The cached PSNRs of ``calibrate_defaults.py``'s grid columns, None if one is missing."""
+    cache = work / "results" / name
+    out = []
+    for alpha in GRID:
+        column = protocol.Column(protocol.alpha_key(alpha), source, {"alpha": alpha})
+        path = cache / f"{source}_{column.key}.json"
+        data = protocol._cached(path, protocol._signature(column.settings()))
+        if data is None:
+            return None
+        out.append(data["psnr"])
+    return np.array(out)
+
+
+def report(rows: dict, work: Path, args, minutes: float) -> list[str]:
+    lines = [
+        f"# `held-out`'s choice on the grid: {args.split} split, {args.size}, {len(rows)} scenes",
+        "",
+        f"Command: `python benchmarks/study_held_out.py {' '.join(sys.argv[1:])}`; "
+        f"{minutes:.1f} min (cached errors reused). Each rule's grid alpha scored with the "
+        "PSNR of `calibrate_defaults.py`'s grid column; the floor snapped to the grid. dB below "
+        "the best grid alpha: mean, worst scene, scenes more than 1.5 dB below.",
+        "",
+        "| noise gate (x 2 sigma^2) | true motion: mean | worst | > 1.5 dB | "
+        "scene flow: mean | worst | > 1.5 dB |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for ratio in RATIOS:
+        cells = []
+        for source in protocol.MOTIONS:
+            gaps = []
+            for name, entry in rows.items():
+                psnrs = grid_psnrs(work, name, source)
+                if psnrs is not None:
+                    gaps.append((psnrs.max() - psnrs[choice(entry[source], ratio)], name))
+            values = np.array([g for g, _ in gaps])
+            worst = max(gaps)
+            cells += [
+                f"{values.mean():.2f}",
+                f"{worst[0]:.2f} ({worst[1]})",
+                f"{(values > 1.5).sum()}",
+            ]
+        label = "none" if ratio is None else f"{ratio:g}"
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--split", choices=("train", "test"), default="train")
+    parser.add_argument("--size", default="320x240")
+    parser.add_argument("--scenes", type=int, default=40)
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--work", default="/tmp/calib/work")
+    args = parser.parse_args(argv)
+    size = tuple(int(v) for v in args.size.split("x"))
+    work = Path(args.work) / args.size
+    start = time.perf_counter()
+    path = work / f"held_out_{args.split}.json"
+    rows = json.loads(path.read_text()) if path.is_file() else {}
+    names = protocol.scene_list(args.split, args.scenes, protocol.KINDS)
+    todo = [(k, s, size, Path(args.work)) for k, s in names if f"{k}_{s:04d}" not in rows]
+    for name, entry in protocol.run_all(grid_errors, todo, args.jobs):
+        rows[name] = entry
+        atomic_write_text(path, json.dumps(rows, indent=1))
+    rows = {f"{k}_{s:04d}": rows[f"{k}_{s:04d}"] for k, s in names}
+    lines = report(rows, work, args, (time.perf_counter() - start) / 60)
+    output = Path(f"benchmarks/results/held_out_{args.split}_{args.size}.md")
+    atomic_write_text(output, "\n".join(lines) + "\n")
+    atomic_write_text(output.with_suffix(".json"), json.dumps(rows, indent=1))
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
