@@ -74,8 +74,7 @@ def evaluate(folder: Path, name: str, source: str) -> dict:
     truth = scene.read_gt_sharp("left", FRAME)
     mixed = scene.read_gt_mixed("left", FRAME)
     border = border_for(truth.shape[1])
-    blurred = window.blurred("right")
-    held_out = other_view(motions["left"], operators["right"], blurred, weights["right"], "right")
+    held_out = other_view(operators["right"], motions["right"], window.blurred("right"), "right")
     out = {}
     for key, observations in rows.items():
         with warnings.catch_warnings():

@@ -95,34 +95,6 @@ def run_scene(task) -> str:
     return root.name
 
 
-def warp_to_other(image: np.ndarray, disparity: np.ndarray, direction: int) -> np.ndarray:
-    """``image`` resampled on the other view's grid at ``u + direction * d(u)`` (``d``: the
-    other view's disparity; +1 takes a left image to the right view), bilinear, edge pixels
-    repeated, float64 (the prediction of 'held-out' up to stop 27)."""
-    from scipy.ndimage import map_coordinates
-
-    height, width = disparity.shape
-    rows, cols = np.mgrid[0:height, 0:width].astype(np.float64)
-    cols += direction * disparity
-    planes = image[..., None] if image.ndim == 2 else image
-    out = np.empty(planes.shape, np.float64)
-    for c in range(planes.shape[-1]):
-        out[..., c] = map_coordinates(
-            planes[..., c].astype(np.float64), [rows, cols], order=1, mode="nearest"
-        )
-    return out.reshape(image.shape)
-
-
-def trimmed_error(predicted, observed, *, border: int, keep: float) -> float:
-    """Mean squared error per pixel (over channels) of the ``keep`` smallest ones,
-    ``border`` px excluded (the prediction error of 'held-out' up to stop 27, keep 0.9)."""
-    error = (np.asarray(predicted, np.float64) - np.asarray(observed, np.float64)) ** 2
-    if error.ndim == 3:
-        error = error.mean(axis=-1)
-    error = np.sort(error[border:-border, border:-border], axis=None)
-    return float(error[: max(1, int(keep * error.size))].mean())
-
-
 def cross_view_costs(scene, out: Path, source: str, handlings=HANDLINGS) -> None:
     """How well each view's solutions predict the *other* view's blurred frame, per alpha:
     ``|| A_other W x(alpha) - b_other ||^2`` (trimmed), and their own, ``|| A x - b ||^2``;
@@ -130,6 +102,7 @@ def cross_view_costs(scene, out: Path, source: str, handlings=HANDLINGS) -> None
     import json
 
     from stereodeblur.pipeline import DeblurSettings
+    from stereodeblur.pipeline.alpha import trimmed_error, warp_to_other
     from stereodeblur.pipeline.motion import stereo_motion
     from stereodeblur.pipeline.operator import view_operator
     from stereodeblur.pipeline.window import read_window

@@ -23,9 +23,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import calibrate_defaults as protocol  # noqa: E402
-from study_alpha_choice import GRID, HANDLINGS, SOURCES, warp_to_other  # noqa: E402
+from study_alpha_choice import GRID, HANDLINGS, SOURCES  # noqa: E402
 
-from stereodeblur.pipeline.alpha import candidates, choose, searched  # noqa: E402
+from stereodeblur.pipeline.alpha import candidates, choose, searched, warp_to_other  # noqa: E402
 
 PAPER_INDEX = GRID.index(1e-3)
 

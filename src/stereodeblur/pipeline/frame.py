@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..deconv.irls import DeblurResult, Observation, deblur_irls
+from ..deconv.irls import DeblurResult, deblur_irls
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
 from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
-from .alpha import below_floor, candidates, choose, other_view, prediction_error, searched
+from .alpha import OtherView, candidates, choose, other_view, prediction_error, searched
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import NamedObservation, view_observations
 from .operator import view_operator
@@ -143,7 +143,7 @@ def deblur_view(
     timings: dict | None = None,
     progress: ProgressCallback | None = None,
     operator=None,
-    other: Observation | None = None,
+    other: OtherView | None = None,
     terms: DataTerms | None = None,
     observations: tuple[NamedObservation, ...] = (),
 ) -> FrameResult:
@@ -231,23 +231,14 @@ def _alpha_choice_solve(
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
     runs, errors = [], []
-
-    def run(alpha):
+    for alpha in candidates(rule, base.alpha):
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
         result = solve(blurred, operator.operator, terms, fixed, weights=weights, progress=progress)
         errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
         runs.append((terms, result))
-
-    for alpha in candidates(rule, base.alpha):
-        run(alpha)
         if searched(rule, errors):
             break
-    if rule == "held-out" and choose(errors, rule) == 0:
-        for alpha in below_floor(base.alpha, errors[0], base.noise_sigma):
-            run(alpha)
-            if errors[-1] >= min(errors[:-1]):
-                break
     terms, result = runs[choose(errors, rule)]
     if observations:
         report(progress, f"alpha {terms.alpha:g} with the further observations")
@@ -364,22 +355,19 @@ def deblur_stereo_frame(
             report(progress, f"frame {index} {view}: blur operator ({settings.kernels})")
             operators[view] = build_view_operator(window, motion.views[view], settings)
             seconds[view] = {"operator": time.perf_counter() - start}
-    if cross_view or "other-view" in kinds:  # a view's data weights weigh it as the other's
-        fixed = _choice_settings(settings)  # observation
+    if cross_view:
+        for view, other in zip(VIEWS, VIEWS[::-1], strict=True):
+            others[view] = other_view(
+                operators[other], motion.views[other], window.blurred(other), other
+            )
+    if "other-view" in kinds:  # each view's data weights weigh it as the other's observation
+        fixed = _choice_settings(settings)
         terms = {v: data_terms(scene, window, v, operators[v], fixed) for v in needed}
     weights = {v: t.weights for v, t in terms.items()}
-    if cross_view:
-        for view in views:
-            other = next(v for v in VIEWS if v != view)
-            others[view] = other_view(
-                motion.views[view], operators[other], window.blurred(other), weights[other], other
-            )
     frames = {}
     for view in views:
         start = time.perf_counter()
-        observations = view_observations(
-            window, view, motion.views, operators, weights, settings, other=others.get(view)
-        )
+        observations = view_observations(window, view, motion.views, operators, weights, settings)
         if kinds:
             seconds[view]["observations"] = time.perf_counter() - start
         frames[view] = deblur_view(
