@@ -11,16 +11,17 @@ solution predicts the right view's blurred frame in two ways: as ``held-out`` do
 best-predicted pixels through a bilinear warp,
 :func:`stereodeblur.pipeline.alpha.prediction_error`), and through the right view's observation
 of the left one (the data term of ``--observations other-view``: a cubic warp by the disparity,
-the right view's operator), every pixel it sees counted (:func:`observed_error`). With the
-floor (the ``'auto'`` alpha, snapped to the grid) and the noise estimate this gives each rule's
-grid alpha: upwards from the floor while the error falls, and for the candidate, where the
-floor predicts best within ``ratio`` times the two views' noise ``2 sigma^2``, downwards to the
-noise rule's alpha while it falls (the noise gate, :func:`choice`). Each choice is scored with
-the PSNR of the grid column ``alpha=A`` of ``calibrate_defaults.py`` (the alpha solved with the
-default's observations), as that script's checks score the default. Written:
-``benchmarks/results/held_out_SPLIT_WxH.md`` (and the errors, ``.json``); the errors are cached
-under ``--work``. The candidate was not adopted: README, "`held-out` with the other view's
-observation and a noise gate".
+the right view's operator), every pixel it sees counted (:func:`observed_errors`, which also
+gives the error over the pixels of data weight >= 0.5 and over those whose motion is trusted).
+With the floor (the ``'auto'`` alpha, snapped to the grid) and the noise estimate this gives
+each rule's grid alpha: upwards from the floor while the error falls, and for the candidate,
+where the floor predicts best within ``ratio`` times the two views' noise ``2 sigma^2``,
+downwards to the noise rule's alpha while it falls (the noise gate, :func:`choice`). Each
+choice is scored with the PSNR of the grid column ``alpha=A`` of ``calibrate_defaults.py`` (the
+alpha solved with the default's observations), as that script's checks score the default.
+Written: ``benchmarks/results/held_out_SPLIT_WxH.md`` (and the errors, ``.json``); the errors
+are cached under ``--work``. The candidate was not adopted: README, "`held-out` with the other
+view's observation and a noise gate".
 """
 
 from __future__ import annotations
@@ -48,16 +49,21 @@ RATIOS = (None, 2.0, 4.0, 8.0, 16.0, 24.0)
 VIEWS = ("left", "right")
 
 
-def observed_error(image: np.ndarray, observation, *, border: int) -> float:
+def observed_errors(image: np.ndarray, observation, trust, *, border: int) -> dict:
     """Mean squared error per pixel (over channels) of ``observation``'s blurred frame predicted
-    from ``image``, over the pixels it sees (weight > 0), ``border`` px excluded."""
+    from ``image``, ``border`` px excluded, over the pixels it sees (``'observed'``: weight >
+    0), those it sees with weight >= 0.5 (``'full'``: not the exposures that leave the view),
+    and of those the ones whose motion is trusted (``'trusted'``: ``trust`` >= 0.5)."""
     predicted = np.asarray(observation.operator.forward(image), np.float64)
     error = (predicted - np.asarray(observation.blurred, np.float64)) ** 2
     if error.ndim == 3:
         error = error.mean(axis=-1)
     inner = (slice(border, error.shape[0] - border), slice(border, error.shape[1] - border))
-    seen = np.asarray(observation.weights)[inner] > 0
-    return float(error[inner][seen].mean()) if seen.any() else float("inf")
+    weights, error = np.asarray(observation.weights)[inner], error[inner]
+    trusted = np.ones_like(weights, bool) if trust is None else np.asarray(trust)[inner] >= 0.5
+    masks = {"observed": weights > 0, "full": weights >= 0.5}
+    masks["trusted"] = masks["full"] & trusted
+    return {k: float(error[m].mean()) if m.any() else float("inf") for k, m in masks.items()}
 
 
 def grid_errors(task) -> tuple[str, dict]:
@@ -99,7 +105,7 @@ def grid_errors(task) -> tuple[str, dict]:
                 motions["left"].sceneflow, operators["right"], right, terms["right"].weights
             )
             border = border_for(right.shape[1])
-            errors, observed = [], []
+            errors, observed = [], {"observed": [], "full": [], "trusted": []}
             for alpha in GRID:
                 fixed = replace(settings, alpha=alpha, observations="single")
                 left = replace(
@@ -109,10 +115,12 @@ def grid_errors(task) -> tuple[str, dict]:
                     scene, window, motions["left"], fixed, operator=operators["left"], terms=left
                 ).image
                 errors.append(prediction_error(image, held_out, border=border))
-                observed.append(observed_error(image, observation, border=border))
+                trust = terms["right"].trust
+                for key, value in observed_errors(image, observation, trust, border=border).items():
+                    observed[key].append(value)
         out[source] = {
             "held_out": errors,
-            "observed": observed,
+            **observed,
             "floor": terms["left"].alpha,
             "sigma": estimate_noise_sigma(window.blurred("left")),
         }
@@ -148,6 +156,14 @@ RULES = (
         if r is not None
         else ("the other view's observation, every pixel it sees, no gate", "observed", None)
         for r in RATIOS
+    ),
+    *(
+        (f"the same, pixels of weight >= 0.5{'' if r is None else f', gate {r:g}'}", "full", r)
+        for r in (None, 8.0)
+    ),
+    *(
+        (f"the same, and trust >= 0.5{'' if r is None else f', gate {r:g}'}", "trusted", r)
+        for r in (None, 8.0)
     ),
 )
 """Rows of the report: label, errors, gate ratio."""
