@@ -67,7 +67,7 @@ def observed_errors(image: np.ndarray, observation, trust, *, border: int) -> di
 
 
 def grid_errors(task) -> tuple[str, dict]:
-    """Both prediction errors of each grid alpha's own-frame solution, the floor and the noise,
+    """The prediction errors of each grid alpha's own-frame solution, the floor and the noise,
     per motion source, for one scene."""
     from stereodeblur.deconv.noise import estimate_noise_sigma
     from stereodeblur.evaluation.metrics import border_for
@@ -104,7 +104,7 @@ def grid_errors(task) -> tuple[str, dict]:
             observation = other_view_observation(
                 motions["left"].sceneflow, operators["right"], right, terms["right"].weights
             )
-            border = border_for(right.shape[1])
+            border, trust = border_for(right.shape[1]), terms["right"].trust
             errors, observed = [], {"observed": [], "full": [], "trusted": []}
             for alpha in GRID:
                 fixed = replace(settings, alpha=alpha, observations="single")
@@ -115,7 +115,6 @@ def grid_errors(task) -> tuple[str, dict]:
                     scene, window, motions["left"], fixed, operator=operators["left"], terms=left
                 ).image
                 errors.append(prediction_error(image, held_out, border=border))
-                trust = terms["right"].trust
                 for key, value in observed_errors(image, observation, trust, border=border).items():
                     observed[key].append(value)
         out[source] = {
