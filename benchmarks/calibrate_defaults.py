@@ -58,6 +58,7 @@ import numpy as np
 
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
+from stereodeblur.pipeline.alpha import RULES_VERSION
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -185,12 +186,16 @@ def _log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def _signature(settings) -> str:
+def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, so results from before those
-    options stay valid)."""
+    options stay valid) and, for the rules that predict the other view, their version (unless
+    not ``rules``: what does not depend on the alpha)."""
     text = repr(settings).replace(", observations='single'", "")
-    return text.replace(", interpolation='bilinear'", "")
+    text = text.replace(", interpolation='bilinear'", "")
+    rule = settings.alpha in ("held-out", "cross-view") and settings.motion_source != "initial-flow"
+    rule = rule and rules  # without a scene flow they are 'auto'
+    return text + (f" alpha rules {RULES_VERSION}" if rule else "")
 
 
 def _cached(path: Path, signature: str) -> dict | None:
@@ -356,7 +361,8 @@ def run_scene(task) -> dict:
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"
-        signature = _signature(Column("default", source).settings()) + FEATURES_VERSION
+        signature = _signature(Column("default", source).settings(), rules=False)
+        signature += FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:
             motion = motion_for(scene, Column("default", source), motion_cache, motion_seconds)

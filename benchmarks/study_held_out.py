@@ -16,12 +16,14 @@ gives the error over the pixels of data weight >= 0.5 and over those whose motio
 With the floor (the ``'auto'`` alpha, snapped to the grid) and the noise estimate this gives
 each rule's grid alpha: upwards from the floor while the error falls, and for the candidate,
 where the floor predicts best within ``ratio`` times the two views' noise ``2 sigma^2``,
-downwards to the noise rule's alpha while it falls (the noise gate, :func:`choice`). Each
+downwards to the noise rule's alpha while it falls (the noise gate, :func:`choice`); the rows
+"`held-out` upwards" keep ``held-out``'s choice and gate it with the error over the pixels of
+data weight >= 0.5 (the default since stop 29). Each
 choice is scored with the PSNR of the grid column ``alpha=A`` of ``calibrate_defaults.py`` (the
 alpha solved with the default's observations), as that script's checks score the default.
 Written: ``benchmarks/results/held_out_SPLIT_WxH.md`` (and the errors, ``.json``); the errors
-are cached under ``--work``. The candidate was not adopted: README, "`held-out` with the other
-view's observation and a noise gate".
+are cached under ``--work``. Stop 28's candidate was not adopted: README, "`held-out` with the
+other view's observation and a noise gate".
 """
 
 from __future__ import annotations
@@ -132,10 +134,11 @@ def snap(alpha: float) -> int:
     return int(np.argmin([abs(np.log(alpha / a)) for a in GRID]))
 
 
-def choice(entry: dict, key: str, ratio: float | None) -> int:
+def choice(entry: dict, key: str, ratio: float | None, gate: str | None = None) -> int:
     """The grid index chosen with the errors ``entry[key]``: upwards from the snapped floor
     while the error falls (``held-out``); then, with a noise gate of ``ratio``, downwards to the
-    noise rule's alpha while it falls if the floor predicts best within ``ratio * 2 sigma^2``."""
+    noise rule's alpha while the error ``entry[gate]`` (default: the same) falls if the floor
+    predicts best and its ``gate`` error is within ``ratio * 2 sigma^2``."""
     from stereodeblur.deconv.noise import alpha_from_sigma
 
     errors, floor = entry[key], snap(entry["floor"])
@@ -143,8 +146,9 @@ def choice(entry: dict, key: str, ratio: float | None) -> int:
     while best + 1 < len(GRID) and errors[best + 1] < errors[best]:
         best += 1
     noise = snap(alpha_from_sigma(entry["sigma"]))
-    gated = ratio is not None and best == floor and errors[best] < ratio * 2 * entry["sigma"] ** 2
-    while gated and best > noise and errors[best - 1] < errors[best]:
+    below = entry[gate or key]
+    gated = ratio is not None and best == floor and below[best] < ratio * 2 * entry["sigma"] ** 2
+    while gated and best > noise and below[best - 1] < below[best]:
         best -= 1
     return best
 
@@ -165,8 +169,12 @@ RULES = (
         (f"the same, and trust >= 0.5{'' if r is None else f', gate {r:g}'}", "trusted", r)
         for r in (None, 8.0)
     ),
+    *(
+        (f"`held-out` upwards, the gate {r:g} on the weight >= 0.5 error", "held_out", r, "full")
+        for r in (4.0, 8.0, 16.0)
+    ),
 )
-"""Rows of the report: label, errors, gate ratio."""
+"""Rows of the report: label, errors, gate ratio (and the gate's errors, if others)."""
 
 
 def grid_psnrs(work: Path, name: str, source: str) -> np.ndarray | None:
@@ -201,11 +209,11 @@ def report(rows: dict, work: Path, args, minutes: float) -> list[str]:
         for source in protocol.MOTIONS
         if (psnrs := grid_psnrs(work, name, source)) is not None
     ]
-    for label, key, ratio in RULES:
+    for label, key, ratio, *gate in RULES:
         cells = []
         for source in protocol.MOTIONS:
             gaps = [
-                (psnrs.max() - psnrs[choice(errors, key, ratio)], name)
+                (psnrs.max() - psnrs[choice(errors, key, ratio, *gate)], name)
                 for name, s, errors, psnrs in scored
                 if s == source
             ]

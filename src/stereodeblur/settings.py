@@ -30,6 +30,8 @@ __all__ = [
     "DEFAULT_MOTION_SOURCE",
     "DEFAULT_OBSERVATIONS",
     "GATE_MARGIN",
+    "HELD_OUT_MIN_WEIGHT",
+    "HELD_OUT_NOISE_RATIO",
     "MONOCULAR_BOUNDARY_WEIGHTS",
     "OBSERVATIONS",
     "OBSERVATION_ROBUST_SCALE",
@@ -100,6 +102,14 @@ CROSS_VIEW_STEP = 1
 # Training study: all pixels instead of the 90 % best predicted ones lost up to 5 dB where
 # occlusions dominate the error (family_0000, gt motion).
 CROSS_VIEW_KEEP = 0.9
+# Stop 28, train split (40 scenes, 320x240; benchmarks/results/held_out_train_320x240.md):
+# 'held-out' goes below the trust's raise of its floor only where the floor's untrimmed
+# prediction error is within this many times 2 sigma^2; 4 to 16 measured alike, 2 worse.
+HELD_OUT_NOISE_RATIO = 8.0
+# The same study and bench planar (stop 29): that error counts the pixels the other view sees
+# with at least this data weight; every seen pixel (> 0) counts the exposures that leave the
+# view (weight 0.1) and lost 1.44 dB on bench planar's strong_yaw.
+HELD_OUT_MIN_WEIGHT = 0.5
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene;
 # 'gated' over 'adaptive': 40 test scenes at 320x240 (benchmarks/results/
 # calibrate_defaults_test_320x240.md) +0.09 / +0.24 dB (true motion / scene flow), scenes more
@@ -178,10 +188,12 @@ class DeblurSettings:
     alpha : float, 'held-out', 'auto' or 'cross-view'
         Prior weight of Eq. 6. ``'held-out'`` (default) deblurs each view at the ``'auto'``
         alpha and at every alpha of :data:`CROSS_VIEW_ALPHAS` above it and keeps the one
-        whose solution best predicts the other view (:mod:`stereodeblur.pipeline.alpha`);
-        without the other view (``motion_source='initial-flow'``, a given motion of one
-        view) it is ``'auto'``. With further ``observations`` the candidates are solved
-        from the view's own frame and the chosen alpha is solved once more with them.
+        whose solution best predicts the other view, below the ``'auto'`` alpha's raise by
+        the motion's trust only where that prediction is within :data:`HELD_OUT_NOISE_RATIO`
+        of the noise (:mod:`stereodeblur.pipeline.alpha`); without the other view
+        (``motion_source='initial-flow'``, a given motion of one view) it is ``'auto'``.
+        With further ``observations`` the candidates are solved from the view's own frame
+        and the chosen alpha is solved once more with them.
         ``'auto'`` sets it from the noise level of the blurred frame
         (:func:`stereodeblur.deconv.noise.auto_alpha`), and with ``boundary_weights``
         'gated' or 'adaptive' at least to what the share of pixels whose motion is not

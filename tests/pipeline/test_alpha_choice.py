@@ -1,14 +1,30 @@
 """Alpha chosen by predicting the other view: 'cross-view' and 'held-out'."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from stereodeblur.cli.settings_options import alpha as alpha_option
+from stereodeblur.deconv.irls import Observation
+from stereodeblur.deconv.noise import alpha_from_sigma
 from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import DeblurSettings, deblur_frame, deblur_stereo_frame
-from stereodeblur.pipeline.alpha import OtherView, choose, prediction_error, warp_to_other
-from stereodeblur.settings import CROSS_VIEW_ALPHAS, CROSS_VIEW_KEEP
+from stereodeblur.pipeline.alpha import (
+    OtherView,
+    below_floor,
+    choose,
+    observed_error,
+    prediction_error,
+    warp_to_other,
+)
+from stereodeblur.settings import (
+    CROSS_VIEW_ALPHAS,
+    CROSS_VIEW_KEEP,
+    HELD_OUT_MIN_WEIGHT,
+    HELD_OUT_NOISE_RATIO,
+)
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
@@ -58,6 +74,44 @@ def test_prediction_error_leaves_out_the_worst_pixels():
     assert prediction_error(left, OtherView(_Identity(), noisy, disparity, +1), border=4) == (
         pytest.approx(0.01)
     )
+
+
+def test_the_gates_error_counts_the_pixels_the_other_view_sees_in_full():
+    image = _texture((30, 40))
+    seen = np.ones((30, 40), np.float32)
+    assert observed_error(image, Observation(_Identity(), image, seen), border=4) < 1e-20
+    occluded, unseen = image.copy(), seen.copy()
+    occluded[10:12, 10:20] += 1.0
+    unseen[10:12, 10:20] = 0.0  # the observation does not see them: they do not count
+    assert observed_error(image, Observation(_Identity(), occluded, unseen), border=4) < 1e-20
+    counted = observed_error(image, Observation(_Identity(), occluded, seen), border=4)
+    assert counted == pytest.approx(20 / (22 * 32))  # untrimmed
+    outside = seen.copy()
+    outside[10:12, 10:20] = 0.1  # exposures that leave the view: below the least weight
+    assert 0.1 < HELD_OUT_MIN_WEIGHT
+    assert observed_error(image, Observation(_Identity(), occluded, outside), border=4) < 1e-20
+    edge = image.copy()
+    edge[:4] += 1.0  # within the border
+    assert observed_error(image, Observation(_Identity(), edge, seen), border=4) < 1e-20
+    colour = np.stack([image] * 3, axis=-1)
+    noisy = Observation(_Identity(), colour + 0.1, seen * HELD_OUT_MIN_WEIGHT)
+    assert observed_error(colour, noisy, border=4) == pytest.approx(0.01)
+    blind = Observation(_Identity(), image, np.zeros_like(seen))
+    assert observed_error(image, blind, border=4) == np.inf
+
+
+def test_below_the_floor_only_where_the_other_view_is_predicted_to_its_noise():
+    sigma = 0.005
+    noise = alpha_from_sigma(sigma)
+    floor = 1e-3
+    assert noise < 1e-4
+    within = 0.5 * HELD_OUT_NOISE_RATIO * 2 * sigma**2
+    tried = below_floor(floor, within, sigma)
+    assert tried == (*(a for a in CROSS_VIEW_ALPHAS[::-1] if noise < a < floor), noise)
+    assert tried[:2] == (3e-4, 1e-4)
+    assert below_floor(floor, 2 * HELD_OUT_NOISE_RATIO * 2 * sigma**2, sigma) == ()
+    assert below_floor(noise, within, sigma) == ()  # the floor is the noise rule's own
+    assert below_floor(floor, within, 0.0) == ()  # no noise: nothing is within it
 
 
 def test_the_choice_is_one_step_above_the_best_predictor_within_the_grid():
@@ -222,3 +276,49 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert len(calls) == 3 and chosen.alpha == grid[0]
+
+
+def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkeypatch):
+    from stereodeblur.pipeline import alpha as alpha_module
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    auto = deblur_stereo_frame(
+        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
+    ).frames["left"]
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", (auto.alpha * 2, auto.alpha * 4))
+    below = tuple(auto.alpha / k for k in (2, 4, 8, 16))
+    gated = []
+
+    def tried(floor, error, sigma):
+        gated.append((floor, error))
+        return below
+
+    upwards = iter([1.0, 2.0])  # the floor beats the grid above it
+    downwards = iter([0.9, 0.5, 0.25, 0.3])  # the floor's, then down to a rise
+    monkeypatch.setattr(frame_module, "below_floor", tried)
+    monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(upwards))
+    monkeypatch.setattr(frame_module, "observed_error", lambda *a, border: next(downwards))
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    assert gated == [(auto.alpha, 0.9)]
+    assert chosen.alpha == below[1] and next(downwards, None) is None
+    fixed = deblur_stereo_frame(
+        scene, 1, settings=replace(settings, alpha=below[1]), views=("left",)
+    ).frames["left"]
+    np.testing.assert_array_equal(chosen.image, fixed.image)
+
+
+def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
+    from stereodeblur.pipeline import alpha as alpha_module
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    auto = deblur_stereo_frame(
+        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
+    ).frames["left"]
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", (auto.alpha * 2,))
+    upwards = iter([1.0, 2.0])
+    monkeypatch.setattr(frame_module, "below_floor", lambda *args: ())
+    monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(upwards))
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    assert chosen.alpha == auto.alpha

@@ -280,11 +280,15 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'`` and
     ``interpolation`` only when not ``'bilinear'``, so results from before those options stay
-    valid)."""
+    valid; the version of the alpha rules that predict the other view)."""
+    from ..pipeline.alpha import RULES_VERSION
+
     fields = asdict(column.settings(settings))
     for name, old in (("observations", "single"), ("interpolation", "bilinear")):
         if fields[name] == old:
             del fields[name]
+    if fields["alpha"] in ("held-out", "cross-view") and fields["motion_source"] != "initial-flow":
+        fields["alpha_rules"] = RULES_VERSION  # without a scene flow they are 'auto'
     return {**fields, "frame": FRAME}
 
 

@@ -12,20 +12,45 @@ see (occlusions, the image edge) give the largest errors, so only the smallest
 prediction is made in the blurred domain, where the blur hides part of the estimate's error
 (the noise it averages away, the detail it removes), so on its own it often picks too little
 regularisation for noisy frames. ``'held-out'`` therefore keeps the best predictor among
-alphas no smaller than the noise rule's; ``'cross-view'`` takes
+alphas no smaller than the noise rule's, raised by the motion's trust; ``'cross-view'`` takes
 :data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
 whole grid (``benchmarks/study_alpha_choice.py``).
+
+Where the floor predicts best, ``'held-out'`` asks whether the trust's raise was needed: it
+predicts the other view once more, through the other view's observation of this view (the
+data term of ``observations='other-view'``), over every pixel that observation sees with a
+data weight of at least :data:`~stereodeblur.settings.HELD_OUT_MIN_WEIGHT`, untrimmed (a
+trimmed mean of squared errors lies below the noise it is compared with). Only if that error
+is within :data:`~stereodeblur.settings.HELD_OUT_NOISE_RATIO` of the two views' noise (the
+motion explains the other view) does it go below the floor, down to the noise rule's alpha,
+while the same error falls (:func:`below_floor`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.ndimage import map_coordinates
 
+from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
-from ..settings import CROSS_VIEW_ALPHAS, CROSS_VIEW_KEEP, CROSS_VIEW_STEP
+from ..settings import (
+    CROSS_VIEW_ALPHAS,
+    CROSS_VIEW_KEEP,
+    CROSS_VIEW_STEP,
+    HELD_OUT_MIN_WEIGHT,
+    HELD_OUT_NOISE_RATIO,
+)
+
+if TYPE_CHECKING:
+    from ..deconv.irls import Observation
+
+RULES_VERSION = 5
+"""Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
+cached benchmark results: 5 since stop 29 (the noise gate below the floor), 1 before (2 to 4
+were candidates of stops 28 and 29, not adopted)."""
 
 
 @dataclass(frozen=True)
@@ -43,24 +68,32 @@ class OtherView:
     direction : int
         +1 if the other view is the right one (its pixel ``u`` sees the left view's
         ``u + d``), -1 if it is the left one.
+    observation : Observation or None
+        The other view's observation of this view with its data weights
+        (:func:`~.observations.other_view_observation`), for the noise gate.
     """
 
     operator: object
     blurred: np.ndarray
     disparity: np.ndarray
     direction: int
+    observation: Observation | None = None
 
 
-def other_view(view_operator, motion, blurred: np.ndarray, view: str) -> OtherView:
-    """The :class:`OtherView` made of view ``view``'s operator, motion and blurred frame,
-    for the choice of the view opposite to it."""
+def other_view(
+    view_operator, motion, blurred: np.ndarray, view: str, observation=None
+) -> OtherView:
+    """The :class:`OtherView` made of view ``view``'s operator, motion and blurred frame
+    (and its ``observation`` of the opposite view), for the choice of the view opposite to
+    it."""
     if motion.sceneflow is None:
         raise InputError(
             f"alpha='cross-view' needs the {view} view's disparity, which its motion lacks",
             parameter="alpha",
         )
     direction = 1 if view == "right" else -1
-    return OtherView(view_operator.operator, blurred, motion.sceneflow.disparity(), direction)
+    disparity = motion.sceneflow.disparity()
+    return OtherView(view_operator.operator, blurred, disparity, direction, observation)
 
 
 def warp_to_other(image: np.ndarray, disparity: np.ndarray, direction: int) -> np.ndarray:
@@ -116,3 +149,28 @@ def choose(errors, rule: str = "cross-view") -> int:
     predictor, for ``'cross-view'`` :data:`CROSS_VIEW_STEP` above it, within the grid."""
     best = int(np.argmin(errors))
     return best if rule == "held-out" else min(best + CROSS_VIEW_STEP, len(errors) - 1)
+
+
+def observed_error(image: np.ndarray, observation: Observation, *, border: int) -> float:
+    """Mean squared error per pixel (over channels) of ``observation``'s blurred frame
+    predicted from ``image``, over the pixels it sees with a data weight of at least
+    :data:`HELD_OUT_MIN_WEIGHT`, ``border`` px excluded; inf if there are none."""
+    predicted = np.asarray(observation.operator.forward(image), np.float64)
+    error = (predicted - np.asarray(observation.blurred, np.float64)) ** 2
+    if error.ndim == 3:
+        error = error.mean(axis=-1)
+    inner = (slice(border, error.shape[0] - border), slice(border, error.shape[1] - border))
+    counted = np.asarray(observation.weights)[inner] >= HELD_OUT_MIN_WEIGHT
+    return float(error[inner][counted].mean()) if counted.any() else float("inf")
+
+
+def below_floor(floor: float, error: float, sigma: float) -> tuple[float, ...]:
+    """The alphas ``'held-out'`` tries below its ``floor`` (the noise rule's alpha raised by
+    the motion's trust) when the floor predicts best with :func:`observed_error` ``error``,
+    from the top: the grid alphas between the noise rule's alpha (from ``sigma``) and the
+    floor, then the noise rule's. None unless ``error`` is within
+    :data:`HELD_OUT_NOISE_RATIO` of the two views' noise ``2 sigma^2``."""
+    noise = alpha_from_sigma(sigma)
+    if noise >= floor or error >= HELD_OUT_NOISE_RATIO * 2.0 * sigma**2:
+        return ()
+    return (*(a for a in reversed(CROSS_VIEW_ALPHAS) if noise < a < floor), noise)

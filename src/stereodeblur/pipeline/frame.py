@@ -18,9 +18,18 @@ from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
 from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
-from .alpha import OtherView, candidates, choose, other_view, prediction_error, searched
+from .alpha import (
+    OtherView,
+    below_floor,
+    candidates,
+    choose,
+    observed_error,
+    other_view,
+    prediction_error,
+    searched,
+)
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
-from .observations import NamedObservation, view_observations
+from .observations import NamedObservation, other_view_observation, view_observations
 from .operator import view_operator
 from .weights import DataTerms, data_terms, gate_trusts
 from .window import (
@@ -221,7 +230,8 @@ def _alpha_choice_solve(
 ):
     """Solve at the candidate alphas of ``settings.alpha`` from the view's own blurred frame
     and keep the one chosen by predicting ``other`` (:func:`.alpha.candidates`,
-    :func:`.alpha.searched`, :func:`.alpha.choose`); with ``observations``, solve once more
+    :func:`.alpha.searched`, :func:`.alpha.choose`; below the floor only through the noise
+    gate, :func:`.alpha.below_floor`); with ``observations``, solve once more
     with them at that alpha (the other view is then held out of the choice even where it is
     observed). ``base``: the data terms at :func:`_choice_settings`, if already computed.
     Returns the data terms and the result."""
@@ -230,16 +240,30 @@ def _alpha_choice_solve(
     if base is None:
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
-    runs, errors = [], []
-    for alpha in candidates(rule, base.alpha):
+
+    def run(alpha):
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
         result = solve(blurred, operator.operator, terms, fixed, weights=weights, progress=progress)
-        errors.append(prediction_error(np.clip(result.image, 0.0, 1.0), other, border=border))
-        runs.append((terms, result))
+        return terms, result, np.clip(result.image, 0.0, 1.0)
+
+    runs, errors = [], []
+    for alpha in candidates(rule, base.alpha):
+        *chosen, image = run(alpha)
+        errors.append(prediction_error(image, other, border=border))
+        runs.append(chosen)
         if searched(rule, errors):
             break
     terms, result = runs[choose(errors, rule)]
+    if rule == "held-out" and choose(errors, rule) == 0 and other.observation is not None:
+        floor = np.clip(result.image, 0.0, 1.0)
+        gated = [observed_error(floor, other.observation, border=border)]
+        for alpha in below_floor(base.alpha, gated[0], base.noise_sigma):
+            *below, image = run(alpha)
+            gated.append(observed_error(image, other.observation, border=border))
+            if gated[-1] >= gated[-2]:
+                break
+            terms, result = below
     if observations:
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
@@ -355,19 +379,27 @@ def deblur_stereo_frame(
             report(progress, f"frame {index} {view}: blur operator ({settings.kernels})")
             operators[view] = build_view_operator(window, motion.views[view], settings)
             seconds[view] = {"operator": time.perf_counter() - start}
-    if cross_view:
-        for view, other in zip(VIEWS, VIEWS[::-1], strict=True):
-            others[view] = other_view(
-                operators[other], motion.views[other], window.blurred(other), other
-            )
-    if "other-view" in kinds:  # each view's data weights weigh it as the other's observation
-        fixed = _choice_settings(settings)
+    if cross_view or "other-view" in kinds:  # a view's data weights weigh it as the other's
+        fixed = _choice_settings(settings)  # observation
         terms = {v: data_terms(scene, window, v, operators[v], fixed) for v in needed}
     weights = {v: t.weights for v, t in terms.items()}
+    seen = {}  # each view's observation by the other, where the choice or the data term uses it
+    for view in views if cross_view or "other-view" in kinds else ():
+        other = next(v for v in VIEWS if v != view)
+        if motion.views[view].sceneflow is not None and motion.views[other].sceneflow is not None:
+            blurred = window.blurred(other)
+            own = motion.views[view].sceneflow
+            seen[view] = other_view_observation(own, operators[other], blurred, weights[other])
+        if cross_view:
+            others[view] = other_view(
+                operators[other], motion.views[other], window.blurred(other), other, seen.get(view)
+            )
     frames = {}
     for view in views:
         start = time.perf_counter()
-        observations = view_observations(window, view, motion.views, operators, weights, settings)
+        observations = view_observations(
+            window, view, motion.views, operators, weights, settings, other=seen.get(view)
+        )
         if kinds:
             seconds[view]["observations"] = time.perf_counter() - start
         frames[view] = deblur_view(

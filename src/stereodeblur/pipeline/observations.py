@@ -162,22 +162,27 @@ def view_observations(
     operators,
     weights,
     settings: DeblurSettings,
+    *,
+    other: Observation | None = None,
 ) -> list[NamedObservation]:
     """The observations ``settings.observations`` asks for that ``view`` has.
 
     ``motions``, ``operators``, ``weights``: per view, the :class:`FrameMotion`, the
     :class:`ViewOperator` and the data weights. Nothing without a scene flow; the other
-    view where its operator is given; the frames on either side that the window holds.
+    view where its operator is given (``other``: its observation, if already made); the
+    frames on either side that the window holds.
     """
     kinds = observation_kinds(settings)
     own = motions[view].sceneflow
     if own is None or not kinds:
         return []
     out = []
-    other = next((v for v in operators if v != view), None)
-    if "other-view" in kinds and other is not None:
-        item = other_view_observation(own, operators[other], window.blurred(other), weights[other])
-        out.append(NamedObservation("other-view", item))
+    theirs = next((v for v in operators if v != view), None)
+    if "other-view" in kinds and theirs is not None:
+        if other is None:
+            blurred = window.blurred(theirs)
+            other = other_view_observation(own, operators[theirs], blurred, weights[theirs])
+        out.append(NamedObservation("other-view", other))
     if "neighbours" in kinds:
         direction = window.neighbour - window.index
         sides = [("next" if direction > 0 else "previous", window.neighbour)]

@@ -42,6 +42,8 @@ class DataTerms:
         view).
     alpha : float
         The prior weight of Eq. 6 (:func:`resolve_alpha`).
+    noise_sigma : float
+        The blurred frame's noise estimate the alpha and the trust were computed from.
     """
 
     weights: np.ndarray
@@ -49,6 +51,7 @@ class DataTerms:
     anchor: np.ndarray | None
     trust: np.ndarray | None
     alpha: float
+    noise_sigma: float
 
     @property
     def steps(self) -> tuple:
@@ -227,4 +230,4 @@ def data_terms(
     if view_operator.hidden is not None:
         weights = weights * hidden_weights(view_operator.hidden)
     alpha = resolve_alpha(settings, blurred, alpha_trust, noise_sigma=sigma)
-    return DataTerms(weights, update, anchor, trust, alpha)
+    return DataTerms(weights, update, anchor, trust, alpha, sigma)
