@@ -32,6 +32,20 @@ def test_sparse_equals_numpy_reference(seed, interpolation):
     np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)
 
 
+def test_a_degenerate_flow_gives_a_normalised_operator():
+    # Flows of millions of pixels on the border (found with an estimated scene flow) once
+    # made a grid of terabytes; beyond the image's size the grid stops.
+    forward = smooth_flow(SHAPE, 4, amplitude=5.0)
+    forward[:10, -12:] = (3e6, -1e6)
+    op = displacement_blur(forward, -forward, EXPOSURE, interpolation="cubic")
+    sums = np.asarray(op.matrix.sum(axis=1)).ravel()
+    np.testing.assert_allclose(sums, 1.0, atol=1e-5)
+    calm = smooth_flow(SHAPE, 4, amplitude=5.0)
+    unchanged = displacement_blur(calm, -calm, EXPOSURE, interpolation="cubic").matrix
+    far = slice(20 * SHAPE[1], None)  # rows far from the degenerate corner
+    assert abs(op.matrix[far] - unchanged[far]).max() < 1e-12
+
+
 def _diverging_flow(speed=10.0):
     """Left half moves left, right half moves right, at all instants: a hole opens."""
     flow = np.zeros(SHAPE + (2,))

@@ -148,6 +148,14 @@ def test_margin_depends_only_on_border_flow():
     assert displacement_margin(np.zeros_like(flow), flow, fractions) == 3
 
 
+def test_margin_stops_at_the_image_size():
+    fractions = np.array([-0.25, 0.25])
+    flow = np.zeros(SHAPE + (2,))
+    flow[0, 2, 1] = -4e6  # a degenerate motion: an estimated plane through the camera
+    assert displacement_margin(flow, flow, fractions) == max(SHAPE) + 1
+    assert displacement_margin(flow, flow, fractions, cubic=True) == max(SHAPE) + 2
+
+
 def test_extended_grid_maps_to_nearest_pixel_in_source_order():
     margin = 2
     x, y, source = extended_grid(SHAPE, margin)

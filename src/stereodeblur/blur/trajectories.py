@@ -296,10 +296,14 @@ def displacement_margin(
     flow_forward: np.ndarray, flow_backward: np.ndarray, fractions: np.ndarray, *, cubic=False
 ) -> int:
     """Width in pixels of the extended grid: the farthest reach from outside plus the taps'
-    (one pixel, two for cubic taps).
+    (one pixel, two for cubic taps), at most the image's larger side.
 
     Extended pixels carry the flow of the nearest edge pixel, so only the flow on
     the image border matters; content from farther outside never reaches the image.
+    A reach beyond the image's size is a degenerate motion (an estimated plane whose motion
+    takes it through the camera: flows of millions of pixels, a grid of terabytes); the
+    grid stops there, and the rows lose what came from farther out (the edge pixels'
+    replicas) before they are normalised.
     """
     s = np.asarray(fractions, dtype=np.float64)
     ahead = float(max(s.max(initial=0.0), 0.0))
@@ -310,7 +314,7 @@ def displacement_margin(
         return float(max(np.abs(e).max(initial=0.0) for e in edges))
 
     reach = max(ahead * border_max(flow_forward), behind * border_max(flow_backward))
-    return int(np.ceil(reach)) + (2 if cubic else 1)
+    return int(np.ceil(min(reach, max(flow_forward.shape[:2])))) + (2 if cubic else 1)
 
 
 def extended_grid(shape: tuple[int, int], margin: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
