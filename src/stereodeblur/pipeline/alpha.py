@@ -168,7 +168,7 @@ def below_floor(floor: float, error: float, sigma: float) -> tuple[float, ...]:
     """The alphas ``'held-out'`` tries below its ``floor`` (the noise rule's alpha raised by
     the motion's trust) when the floor predicts best with :func:`observed_error` ``error``,
     from the top: the grid alphas between the noise rule's alpha (from ``sigma``) and the
-    floor, then the noise rule's. None unless ``error`` is within
+    floor, then the noise rule's; none unless ``error`` is within
     :data:`HELD_OUT_NOISE_RATIO` of the two views' noise ``2 sigma^2``."""
     noise = alpha_from_sigma(sigma)
     if noise >= floor or error >= HELD_OUT_NOISE_RATIO * 2.0 * sigma**2:
