@@ -372,7 +372,7 @@ def deblur_stereo_frame(
     )
     timings["motion"] = time.perf_counter() - start
     share = {"motion": sum(timings.values()) / len(views)}
-    operators, seconds, others, terms = {}, {}, {}, {}
+    operators, seconds, terms = {}, {}, {}
     if cross_view or kinds:  # every operator first: the views use each other's
         for view in needed:
             start = time.perf_counter()
@@ -383,22 +383,21 @@ def deblur_stereo_frame(
         fixed = _choice_settings(settings)  # observation
         terms = {v: data_terms(scene, window, v, operators[v], fixed) for v in needed}
     weights = {v: t.weights for v, t in terms.items()}
-    seen = {}  # each view's observation by the other, where the choice or the data term uses it
-    for view in views if cross_view or "other-view" in kinds else ():
-        other = next(v for v in VIEWS if v != view)
-        if motion.views[view].sceneflow is not None and motion.views[other].sceneflow is not None:
-            blurred = window.blurred(other)
-            own = motion.views[view].sceneflow
-            seen[view] = other_view_observation(own, operators[other], blurred, weights[other])
-        if cross_view:
-            others[view] = other_view(
-                operators[other], motion.views[other], window.blurred(other), other, seen.get(view)
-            )
     frames = {}
     for view in views:
         start = time.perf_counter()
+        theirs = next(v for v in VIEWS if v != view)
+        seen, other = None, None  # this view's observation by the other view, its choice's
+        if (cross_view or "other-view" in kinds) and all(
+            motion.views[v].sceneflow is not None for v in (view, theirs)
+        ):
+            own, blurred = motion.views[view].sceneflow, window.blurred(theirs)
+            seen = other_view_observation(own, operators[theirs], blurred, weights[theirs])
+        if cross_view:
+            blurred = window.blurred(theirs)
+            other = other_view(operators[theirs], motion.views[theirs], blurred, theirs, seen)
         observations = view_observations(
-            window, view, motion.views, operators, weights, settings, other=seen.get(view)
+            window, view, motion.views, operators, weights, settings, other=seen
         )
         if kinds:
             seconds[view]["observations"] = time.perf_counter() - start
@@ -410,7 +409,7 @@ def deblur_stereo_frame(
             timings=share | seconds.get(view, {}),
             progress=prefixed(progress, f"frame {index} {view}: "),
             operator=operators.get(view),
-            other=others.get(view),
+            other=other,
             terms=terms.get(view),
             observations=tuple(observations),
         )
