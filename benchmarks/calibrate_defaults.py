@@ -58,7 +58,7 @@ import numpy as np
 
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
-from stereodeblur.pipeline.alpha import RULES_VERSION
+from stereodeblur.pipeline.alpha import rules_version
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -193,9 +193,8 @@ def _signature(settings, *, rules: bool = True) -> str:
     not ``rules``: what does not depend on the alpha)."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "")
-    rule = settings.alpha in ("held-out", "cross-view") and settings.motion_source != "initial-flow"
-    rule = rule and rules  # without a scene flow they are 'auto'
-    return text + (f" alpha rules {RULES_VERSION}" if rule else "")
+    version = rules_version(settings) if rules else None
+    return text + ("" if version is None else f" alpha rules {version}")
 
 
 def _cached(path: Path, signature: str) -> dict | None:

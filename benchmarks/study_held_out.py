@@ -56,13 +56,11 @@ def observed_errors(image: np.ndarray, observation, trust, *, border: int) -> di
     from ``image``, ``border`` px excluded, over the pixels it sees (``'observed'``: weight >
     0), those it sees with weight >= 0.5 (``'full'``: not the exposures that leave the view),
     and of those the ones whose motion is trusted (``'trusted'``: ``trust`` >= 0.5)."""
-    predicted = np.asarray(observation.operator.forward(image), np.float64)
-    error = (predicted - np.asarray(observation.blurred, np.float64)) ** 2
-    if error.ndim == 3:
-        error = error.mean(axis=-1)
-    inner = (slice(border, error.shape[0] - border), slice(border, error.shape[1] - border))
-    weights, error = np.asarray(observation.weights)[inner], error[inner]
-    trusted = np.ones_like(weights, bool) if trust is None else np.asarray(trust)[inner] >= 0.5
+    from stereodeblur.pipeline.alpha import inner, pixel_errors
+
+    error = pixel_errors(observation.operator.forward(image), observation.blurred, border=border)
+    weights = inner(observation.weights, border)
+    trusted = np.ones_like(weights, bool) if trust is None else inner(trust, border) >= 0.5
     masks = {"observed": weights > 0, "full": weights >= 0.5}
     masks["trusted"] = masks["full"] & trusted
     return {k: float(error[m].mean()) if m.any() else float("inf") for k, m in masks.items()}

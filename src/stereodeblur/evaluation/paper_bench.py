@@ -281,14 +281,15 @@ def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'`` and
     ``interpolation`` only when not ``'bilinear'``, so results from before those options stay
     valid; the version of the alpha rules that predict the other view)."""
-    from ..pipeline.alpha import RULES_VERSION
+    from ..pipeline.alpha import rules_version
 
-    fields = asdict(column.settings(settings))
+    own = column.settings(settings)
+    fields = asdict(own)
     for name, old in (("observations", "single"), ("interpolation", "bilinear")):
         if fields[name] == old:
             del fields[name]
-    if fields["alpha"] in ("held-out", "cross-view") and fields["motion_source"] != "initial-flow":
-        fields["alpha_rules"] = RULES_VERSION  # without a scene flow they are 'auto'
+    if rules_version(own) is not None:
+        fields["alpha_rules"] = rules_version(own)
     return {**fields, "frame": FRAME}
 
 

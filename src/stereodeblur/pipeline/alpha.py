@@ -53,6 +53,13 @@ cached benchmark results: 5 since stop 29 (the noise gate below the floor), 1 be
 were candidates of stops 28 and 29, not adopted)."""
 
 
+def rules_version(settings) -> int | None:
+    """:data:`RULES_VERSION` if ``settings``' alpha is chosen by predicting the other view,
+    else None (a fixed alpha, ``'auto'``, or no scene flow: then the rules are ``'auto'``)."""
+    predicts = settings.alpha in ("held-out", "cross-view")
+    return RULES_VERSION if predicts and settings.motion_source != "initial-flow" else None
+
+
 @dataclass(frozen=True)
 class OtherView:
     """What a view's alpha choice predicts: the other view's blurred frame.
@@ -118,13 +125,21 @@ def prediction_error(image: np.ndarray, other: OtherView, *, border: int) -> flo
     return trimmed_error(predicted, other.blurred, border=border)
 
 
-def trimmed_error(predicted, observed, *, border: int, keep: float = CROSS_VIEW_KEEP) -> float:
-    """Mean squared error per pixel (over channels) of the ``keep`` smallest ones,
-    ``border`` px excluded."""
+def inner(array, border: int) -> np.ndarray:
+    """``array`` without ``border`` px on every side."""
+    array = np.asarray(array)
+    return array[border : array.shape[0] - border, border : array.shape[1] - border]
+
+
+def pixel_errors(predicted, observed, *, border: int) -> np.ndarray:
+    """Squared error per pixel (mean over channels), float64, ``border`` px excluded."""
     error = (np.asarray(predicted, np.float64) - np.asarray(observed, np.float64)) ** 2
-    if error.ndim == 3:
-        error = error.mean(axis=-1)
-    error = np.sort(error[border:-border, border:-border], axis=None)
+    return inner(error.mean(axis=-1) if error.ndim == 3 else error, border)
+
+
+def trimmed_error(predicted, observed, *, border: int, keep: float = CROSS_VIEW_KEEP) -> float:
+    """Mean of the ``keep`` smallest :func:`pixel_errors`."""
+    error = np.sort(pixel_errors(predicted, observed, border=border), axis=None)
     return float(error[: max(1, int(keep * error.size))].mean())
 
 
@@ -155,13 +170,10 @@ def observed_error(image: np.ndarray, observation: Observation, *, border: int) 
     """Mean squared error per pixel (over channels) of ``observation``'s blurred frame
     predicted from ``image``, over the pixels it sees with a data weight of at least
     :data:`HELD_OUT_MIN_WEIGHT`, ``border`` px excluded; inf if there are none."""
-    predicted = np.asarray(observation.operator.forward(image), np.float64)
-    error = (predicted - np.asarray(observation.blurred, np.float64)) ** 2
-    if error.ndim == 3:
-        error = error.mean(axis=-1)
-    inner = (slice(border, error.shape[0] - border), slice(border, error.shape[1] - border))
-    counted = np.asarray(observation.weights)[inner] >= HELD_OUT_MIN_WEIGHT
-    return float(error[inner][counted].mean()) if counted.any() else float("inf")
+    predicted = observation.operator.forward(image)
+    error = pixel_errors(predicted, observation.blurred, border=border)
+    counted = inner(observation.weights, border) >= HELD_OUT_MIN_WEIGHT
+    return float(error[counted].mean()) if counted.any() else float("inf")
 
 
 def below_floor(floor: float, error: float, sigma: float) -> tuple[float, ...]:

@@ -386,16 +386,14 @@ def deblur_stereo_frame(
     frames = {}
     for view in views:
         start = time.perf_counter()
-        theirs = next(v for v in VIEWS if v != view)
-        seen, other = None, None  # this view's observation by the other view, its choice's
-        if (cross_view or "other-view" in kinds) and all(
-            motion.views[v].sceneflow is not None for v in (view, theirs)
-        ):
+        seen = other = None  # this view's observation by the other view; what its choice predicts
+        if cross_view or "other-view" in kinds:
+            theirs = next(v for v in VIEWS if v != view)
             own, blurred = motion.views[view].sceneflow, window.blurred(theirs)
-            seen = other_view_observation(own, operators[theirs], blurred, weights[theirs])
-        if cross_view:
-            blurred = window.blurred(theirs)
-            other = other_view(operators[theirs], motion.views[theirs], blurred, theirs, seen)
+            if own is not None and motion.views[theirs].sceneflow is not None:
+                seen = other_view_observation(own, operators[theirs], blurred, weights[theirs])
+            if cross_view:
+                other = other_view(operators[theirs], motion.views[theirs], blurred, theirs, seen)
         observations = view_observations(
             window, view, motion.views, operators, weights, settings, other=seen
         )
