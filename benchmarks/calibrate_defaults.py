@@ -69,6 +69,7 @@ PAPER = {
     "observations": "single",
     "num_irls": PAPER_IRLS,
     "num_cg": PAPER_CG,
+    "range_guard": False,
 }
 FRAME = 1
 MOTIONS = ("gt", "sceneflow")
@@ -188,11 +189,11 @@ def _log(message: str) -> None:
 
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
-    ``'single'``, ``interpolation`` only when not ``'bilinear'``, so results from before those
-    options stay valid) and, for the rules that predict the other view, their version (unless
-    not ``rules``: what does not depend on the alpha)."""
+    ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
+    so results from before those options stay valid) and, for the rules that predict the
+    other view, their version (unless not ``rules``: what does not depend on the alpha)."""
     text = repr(settings).replace(", observations='single'", "")
-    text = text.replace(", interpolation='bilinear'", "")
+    text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     version = rules_version(settings) if rules else None
     return text + ("" if version is None else f" alpha rules {version}")
 
@@ -225,6 +226,7 @@ def run_column(scene, column: Column, motion, truth) -> dict:
         "ssim": ssim(result.image, truth, border=border),
         "alpha": float(result.alpha) if result.alpha is not None else math.nan,
         "seconds": seconds,
+        "unexplained": 0.0 if result.unexplained is None else float(result.unexplained.mean()),
     }
 
 
@@ -356,7 +358,7 @@ def run_scene(task) -> dict:
         data = cached_column(scene, column, truth, cache, motion_cache, motion_seconds)
         results[f"{column.motion_source}/{column.key}"] = {
             k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")
-        }
+        } | {"unexplained": data.get("unexplained", 0.0)}
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"

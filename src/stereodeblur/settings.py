@@ -142,6 +142,14 @@ DEFAULT_OBSERVATIONS = "other-view"
 # benchmarks/README.md "Multi-observation study", 320x240 object scenes).
 OBSERVATION_ROBUST_SCALE = 0.01
 
+# The range guard (DeblurSettings.range_guard): an estimate more than RANGE_EXCESS outside
+# [0, 1] at more than RANGE_SHARE of the pixels of a RANGE_WINDOW-pixel square marks a region
+# the motion cannot explain (stereodeblur.deconv.intensity_range). PLACEHOLDER
+RANGE_EXCESS = 0.05
+RANGE_WINDOW = 15
+RANGE_SHARE = 0.2
+DEFAULT_RANGE_GUARD = True
+
 # Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre
 # instant alone, an identity "blur"; the operator's memory grows with samples x pixels (about
 # 4.4 bytes per sample and pixel at 320x240), and 1000 is 14 times the paper's N = 70.
@@ -237,6 +245,12 @@ class DeblurSettings:
         :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow: with
         ``motion_source='initial-flow'`` or a given motion of one view every frame has its
         single observation.
+    range_guard : bool
+        Where the estimate leaves [0, 1] over a whole region (:data:`RANGE_EXCESS`,
+        :data:`RANGE_WINDOW`, :data:`RANGE_SHARE`), the motion cannot have made the frame
+        there: those pixels are deblurred once more with no motion (their blurred frame kept,
+        the further observations that see them dropped;
+        :mod:`stereodeblur.deconv.intensity_range`). Default on; the paper has no such step.
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -255,6 +269,7 @@ class DeblurSettings:
     boundary_weights: str = DEFAULT_BOUNDARY_WEIGHTS
     boundary_mask: str | None = None
     observations: str = DEFAULT_OBSERVATIONS
+    range_guard: bool = DEFAULT_RANGE_GUARD
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -307,6 +322,8 @@ class DeblurSettings:
             raise InputError(
                 f"observations must be one of {', '.join(OBSERVATIONS)}, got {self.observations!r}"
             )
+        if not isinstance(self.range_guard, bool):
+            raise InputError(f"range_guard must be True or False, got {self.range_guard!r}")
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(
                 f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"

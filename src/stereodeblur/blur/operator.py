@@ -179,6 +179,14 @@ def merge_rows(base: SparseBlur, other: SparseBlur, mask: np.ndarray) -> SparseB
     return SparseBlur(matrix, base.shape)
 
 
+def without_motion(base: SparseBlur, mask: np.ndarray) -> SparseBlur:
+    """The operator with identity rows (no blur) at the pixels of ``mask``."""
+    n = base.shape[0] * base.shape[1]
+    index = np.arange(n + 1, dtype=np.int32)
+    still = sp.csr_matrix((np.ones(n, np.float32), index[:-1], index), shape=(n, n))
+    return merge_rows(base, SparseBlur(still, base.shape), mask)
+
+
 def _is_compact(matrix: sp.csr_matrix) -> bool:
     """Whether ``matrix`` has the int32 indices and float32 values of this package's operators.
 

@@ -168,12 +168,22 @@ def add_settings_options(
 ) -> None:
     """Add the options of ``fields`` (default: every field with an option) to ``parser``."""
     options = {o.field: o for o in _options()}
-    wanted = list(options) + ["boundary_weights"] if fields is None else list(fields)
+    wanted = list(options) + ["boundary_weights", "range_guard"] if fields is None else list(fields)
     defaults = _defaults()
     g = parser.add_argument_group("method (every variant of the paper's tables is a combination)")
     for name in wanted:
         if name == "boundary_weights":
             _add_boundary_weights(g, defaults[name])
+            continue
+        if name == "range_guard":
+            g.add_argument(
+                "--range-guard",
+                dest=name,
+                action=argparse.BooleanOptionalAction,
+                default=defaults[name],
+                help="deblur with no motion where the estimate leaves [0, 1] over a whole "
+                "region, which the motion cannot explain (default: on; the paper has none)",
+            )
             continue
         o = options[name]
         g.add_argument(
@@ -218,6 +228,8 @@ def option_for(parameter: str | None) -> str | None:
 
     if parameter == "boundary_weights":
         return "--boundary-weights"
+    if parameter == "range_guard":
+        return "--range-guard"
     flags = {o.field: o.flag for o in _options()} | SOURCE_OPTIONS | OTHER_OPTIONS
     return flags.get(parameter)
 
@@ -233,4 +245,5 @@ def arguments_for(settings) -> list[str]:
         out.append("--no-boundary-weights")
     else:
         out += ["--boundary-weights", settings.boundary_weights]
+    out.append("--range-guard" if settings.range_guard else "--no-range-guard")
     return out

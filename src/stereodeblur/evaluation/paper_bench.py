@@ -278,14 +278,19 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 
 
 def _signature(column: Column, settings) -> dict:
-    """What a cached result depends on (``observations`` only when not ``'single'`` and
-    ``interpolation`` only when not ``'bilinear'``, so results from before those options stay
-    valid; the version of the alpha rules that predict the other view)."""
+    """What a cached result depends on (``observations`` only when not ``'single'``,
+    ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on, so results
+    from before those options stay valid; the version of the alpha rules that predict the
+    other view)."""
     from ..pipeline.alpha import rules_version
 
     own = column.settings(settings)
     fields = asdict(own)
-    for name, old in (("observations", "single"), ("interpolation", "bilinear")):
+    for name, old in (
+        ("observations", "single"),
+        ("interpolation", "bilinear"),
+        ("range_guard", False),
+    ):
         if fields[name] == old:
             del fields[name]
     if rules_version(own) is not None:

@@ -45,6 +45,7 @@ from ..settings import (
     DEFAULT_BOUNDARY_WEIGHTS,
     DEFAULT_INTERPOLATION,
     DEFAULT_OBSERVATIONS,
+    DEFAULT_RANGE_GUARD,
     MONOCULAR_BOUNDARY_WEIGHTS,
     NUM_CG,
     NUM_IRLS,
@@ -72,6 +73,7 @@ class Column:
     observations: str = "single"
     paper_solver: bool = False
     interpolation: str = "bilinear"
+    range_guard: bool = False
 
     def settings(self, base: DeblurSettings) -> DeblurSettings:
         """``base`` (a DeblurSettings) with this column's switches; a column of the paper's
@@ -91,6 +93,7 @@ class Column:
             boundary_mask=self.boundary_mask,
             observations=self.observations,
             interpolation=self.interpolation,
+            range_guard=self.range_guard,
         )
 
     def describe(self) -> str:
@@ -99,6 +102,8 @@ class Column:
         seen = f", observations={self.observations}" if self.observations != "single" else ""
         if self.interpolation != "bilinear":
             seen += f", interpolation={self.interpolation}"
+        if self.range_guard:
+            seen += ", range_guard"
         return (
             f"motion_source={self.motion_source}, kernels={self.kernels}, "
             f"boundary_weights={self.boundary_weights}, alpha={self.alpha}{mask}{seen}"
@@ -127,6 +132,7 @@ COLUMNS = (
         MONOCULAR_BOUNDARY_WEIGHTS,
         DEFAULT_ALPHA,
         interpolation=DEFAULT_INTERPOLATION,
+        range_guard=DEFAULT_RANGE_GUARD,
     ),
     Column(
         "ours-full",
@@ -137,6 +143,7 @@ COLUMNS = (
         DEFAULT_ALPHA,
         observations=DEFAULT_OBSERVATIONS,
         interpolation=DEFAULT_INTERPOLATION,
+        range_guard=DEFAULT_RANGE_GUARD,
     ),
 )
 """Tables 3 and 4."""
@@ -170,6 +177,7 @@ def sweep_column(alpha: float) -> Column:
         DEFAULT_BOUNDARY_WEIGHTS,
         alpha,
         observations=DEFAULT_OBSERVATIONS,
+        range_guard=DEFAULT_RANGE_GUARD,
     )
 
 

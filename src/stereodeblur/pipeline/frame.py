@@ -29,7 +29,12 @@ from .alpha import (
     searched,
 )
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
-from .observations import NamedObservation, other_view_observation, view_observations
+from .observations import (
+    NamedObservation,
+    other_view_observation,
+    view_observations,
+    without_pixels,
+)
 from .operator import view_operator
 from .weights import DataTerms, data_terms, gate_trusts
 from .window import (
@@ -62,7 +67,8 @@ class FrameResult:
     ``'deconvolution'`` (data weights, trust and alpha included; the further observations'
     operators in ``'observations'``). ``observations``: the names of the further
     observations the estimate used (``settings.observations``), e.g. ``('other-view',
-    'next', 'previous')``.
+    'next', 'previous')``. ``unexplained``: the pixels the range guard deblurred with no
+    motion (``settings.range_guard``; bool ``(H, W)``), None where it found none.
     """
 
     index: int
@@ -75,6 +81,7 @@ class FrameResult:
     weight_steps: tuple = ()
     trust: np.ndarray | None = None
     observations: tuple = ()
+    unexplained: np.ndarray | None = None
 
     @property
     def image(self) -> np.ndarray:
@@ -200,6 +207,11 @@ def deblur_view(
             observations=observations,
             progress=progress,
         )
+    unexplained = None
+    if settings.range_guard:
+        result, unexplained = _range_guard(
+            blurred, operator, terms, settings, weights, observations, result, progress
+        )
     timings["deconvolution"] = time.perf_counter() - start
     return FrameResult(
         window.index,
@@ -212,7 +224,40 @@ def deblur_view(
         terms.steps,
         terms.trust,
         tuple(o.name for o in observations),
+        unexplained,
     )
+
+
+def _range_guard(blurred, operator, terms, settings, weights, observations, result, progress):
+    """``(result, unexplained)``: where ``result`` leaves [0, 1] over a whole region
+    (:func:`~stereodeblur.deconv.intensity_range.unexplained_regions`), solved once more with
+    no motion there, data weight 1 and the further observations that see it dropped;
+    ``(result, None)`` where there is no such region."""
+    from ..blur.operator import without_motion
+    from ..deconv.intensity_range import unexplained_regions
+    from ..settings import RANGE_EXCESS, RANGE_SHARE, RANGE_WINDOW
+
+    unexplained = unexplained_regions(
+        result.image, excess=RANGE_EXCESS, window=RANGE_WINDOW, share=RANGE_SHARE
+    )
+    if not unexplained.any():
+        return result, None
+    report(progress, f"range guard: {unexplained.mean():.1%} of the pixels with no motion")
+    update = copy.deepcopy(terms.update)
+    for step_holder in (update, getattr(update, "update", None)):
+        if hasattr(step_holder, "history"):
+            step_holder.history.clear()
+    start = terms.weights if weights is None else weights
+    result = solve(
+        blurred,
+        without_motion(operator.operator, unexplained),
+        replace(terms, update=update),
+        settings,
+        weights=np.where(unexplained, 1.0, start).astype(np.float32),
+        observations=tuple(without_pixels(o, unexplained) for o in observations),
+        progress=progress,
+    )
+    return result, unexplained
 
 
 def _choice_settings(settings: DeblurSettings) -> DeblurSettings:

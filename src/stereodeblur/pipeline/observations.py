@@ -84,6 +84,14 @@ def _unseen_weights(blur: SparseBlur, seen: np.ndarray, weights: np.ndarray) -> 
     return np.where(unseen > UNSEEN_SHARE, 0.0, weights).astype(np.float32)
 
 
+def without_pixels(observation: NamedObservation, mask: np.ndarray) -> NamedObservation:
+    """``observation`` with weight 0 where its exposure puts more than :data:`UNSEEN_SHARE`
+    on the estimate's pixels of ``mask``."""
+    o = observation.observation
+    weights = _unseen_weights(o.operator, ~np.asarray(mask, dtype=bool), o.weights)
+    return NamedObservation(observation.name, Observation(o.operator, o.blurred, weights))
+
+
 def other_view_observation(
     own: SceneFlow, other: ViewOperator, blurred: np.ndarray, weights: np.ndarray
 ) -> Observation:

@@ -1,0 +1,34 @@
+"""Where a sharp estimate leaves the intensity range: the motion cannot have made the frame.
+
+A blurred pixel is an average of sharp intensities in [0, 1]. If a blur operator can only
+explain the blurred frame with a sharp estimate far outside that range over a whole region,
+the operator is wrong there: e.g. a motion aliased on a fine periodic texture, whose blur
+runs across the stripes that the blurred frame still shows (README, "Where the defaults come
+from"). :func:`unexplained_regions` finds such regions; the pipeline deblurs them with no
+motion instead (``DeblurSettings.range_guard``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+
+def range_excess(image: np.ndarray) -> np.ndarray:
+    """How far each pixel lies outside [0, 1], float32 ``(H, W)`` (its worst channel)."""
+    image = np.asarray(image, dtype=np.float32)
+    excess = np.maximum(image - 1.0, 0.0) + np.maximum(-image, 0.0)
+    return excess.max(axis=-1) if excess.ndim == 3 else excess
+
+
+def unexplained_regions(
+    image: np.ndarray, *, excess: float, window: int, share: float
+) -> np.ndarray:
+    """Bool ``(H, W)``: pixels whose ``window`` x ``window`` neighbourhood has more than
+    ``share`` of its pixels more than ``excess`` outside [0, 1] in the sharp estimate
+    ``image`` (not clipped)."""
+    if not 0 < share < 1 or excess < 0 or window < 1:
+        raise ValueError(f"need 0 < share < 1, excess >= 0, window >= 1: {share, excess, window}")
+    outside = (range_excess(image) > excess).astype(np.float32)
+    local = ndimage.uniform_filter(outside, size=window, mode="nearest")
+    return local > share
