@@ -94,7 +94,8 @@ def grid_errors(task) -> tuple[str, dict]:
             # the calibration columns' scene flow; the true motion is fitted by stereo_motion
             given = None
             if source == "sceneflow":
-                given = protocol.motion_for(scene, column, {}, {}).sceneflow
+                cache = Path(work) / "results" / root.name
+                given = protocol.motion_for(scene, column, {}, {}, cache).sceneflow
             window = read_window(scene, protocol.FRAME, VIEWS, settings)
             motions = stereo_motion(scene, window, VIEWS, settings, sceneflow=given).views
             operators = {v: build_view_operator(window, motions[v], settings) for v in VIEWS}
