@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from stereodeblur.blur.operator import SparseBlur, dot_test, merge_rows
+from stereodeblur.blur.operator import SparseBlur, dot_test, merge_rows, without_motion
 
 SHAPE = (12, 15)
 
@@ -86,3 +86,14 @@ def test_merge_rows_takes_each_row_from_the_chosen_operator():
     assert dot_test(merged, SHAPE + (2,)) < 1e-12
     with pytest.raises(ValueError, match="one shape"):
         merge_rows(a, b, mask[:-1])
+
+
+def test_without_motion_gives_identity_rows_in_the_mask_only():
+    a = SparseBlur(_random_matrix(3, np.float32, np.int32), SHAPE)
+    mask = np.random.default_rng(6).random(SHAPE) < 0.3
+    still = without_motion(a, mask)
+    image = np.random.default_rng(7).random(SHAPE + (3,)).astype(np.float32)
+    out = still.forward(image)
+    np.testing.assert_array_equal(out[mask], image[mask])
+    np.testing.assert_allclose(out[~mask], a.forward(image)[~mask], rtol=1e-6)
+    assert dot_test(still, SHAPE + (3,)) < 1e-6

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -212,6 +213,13 @@ def deblur_view(
         result, unexplained = _range_guard(
             blurred, operator, terms, settings, weights, observations, result, progress
         )
+        if unexplained is not None:
+            warnings.warn(
+                f"frame {window.index} {view}: the motion cannot explain "
+                f"{unexplained.mean():.0%} of the pixels (the estimate leaves [0, 1] there); "
+                "deblurred with no motion there (range guard)",
+                stacklevel=2,
+            )
     timings["deconvolution"] = time.perf_counter() - start
     return FrameResult(
         window.index,

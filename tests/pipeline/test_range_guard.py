@@ -1,0 +1,82 @@
+"""The range guard: no motion where the estimate leaves [0, 1] over a whole region."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from stereodeblur.geometry import Exposure, StereoCamera
+from stereodeblur.io.scene import CameraInfo, SceneWriter, open_scene
+from stereodeblur.pipeline import DeblurSettings, FrameMotion, deblur_frame, neighbour_of
+
+SIZE = (48, 40)  # width, height
+PERIOD = 4.0
+
+
+def _stripes(root):
+    """A still scene of vertical stripes (period 4 px): its frames are its sharp images."""
+    w, h = SIZE
+    info = CameraInfo(
+        StereoCamera([[50.0, 0, w / 2], [0, 50.0, h / 2], [0, 0, 1]], 0.1),
+        Exposure(20.0, 0.04),  # duty cycle 0.8
+        "linear",
+    )
+    x = np.arange(w)
+    image = 0.5 + 0.35 * np.sin(2 * np.pi * x / PERIOD)
+    image = np.repeat(np.broadcast_to(image, (h, w))[..., None], 3, axis=-1).astype(np.float32)
+    writer = SceneWriter(root, info)
+    for i in range(3):
+        for view in ("left", "right"):
+            writer.write_frame(view, i, image)
+            writer.write_gt_sharp(view, i, image)
+    return open_scene(root), image
+
+
+def _across_the_stripes(scene):
+    """A wrong motion across the stripes: a 3.4 px blur that leaves 17 % of their contrast."""
+    w, h = SIZE
+    forward = np.zeros((h, w, 2), np.float32)
+    forward[..., 0] = 0.85 * PERIOD / 0.8
+    neighbour = neighbour_of(1, scene.num_frames)
+    return FrameMotion(1, neighbour, "left", None, forward, -forward)
+
+
+@pytest.mark.parametrize("guard", [True, False])
+def test_a_motion_that_cannot_have_made_the_frame_leaves_it_as_it_is(tmp_path, guard):
+    scene, sharp = _stripes(tmp_path / "scene")
+    settings = DeblurSettings(
+        kernels="displacement",
+        motion_source="initial-flow",
+        alpha=1e-3,
+        boundary_weights="none",
+        observations="single",
+        num_irls=2,
+        num_cg=10,
+        num_samples=16,
+        range_guard=guard,
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = deblur_frame(scene, 1, settings=settings, motion=_across_the_stripes(scene))
+    said = [str(w.message) for w in caught if "range guard" in str(w.message)]
+    assert len(said) == int(guard)
+    inner = (slice(8, -8), slice(8, -8))
+    error = np.sqrt(np.mean((result.image - sharp)[inner] ** 2))
+    if guard:
+        assert result.unexplained is not None and result.unexplained[inner].mean() > 0.9
+        assert error < 0.02
+    else:
+        assert result.unexplained is None
+        assert error > 0.1
+
+
+def test_a_right_motion_is_not_touched(tmp_path):
+    scene, sharp = _stripes(tmp_path / "scene")
+    w, h = SIZE
+    still = np.zeros((h, w, 2), np.float32)
+    motion = FrameMotion(1, neighbour_of(1, scene.num_frames), "left", None, still, still)
+    settings = DeblurSettings(
+        kernels="displacement", motion_source="initial-flow", alpha=1e-3, num_irls=2, num_cg=10
+    )
+    result = deblur_frame(scene, 1, settings=settings, motion=motion)
+    assert result.unexplained is None
