@@ -59,7 +59,7 @@ import numpy as np
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
-from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS
+from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
 PAPER = {
@@ -198,7 +198,8 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     version = rules_version(settings) if rules else None
     stored = MOTION_STORED if settings.motion_source == "sceneflow" else ""
-    return text + ("" if version is None else f" alpha rules {version}") + stored
+    guard = range_guard_signature(settings)
+    return text + ("" if version is None else f" alpha rules {version}") + stored + guard
 
 
 def _cached(path: Path, signature: str) -> dict | None:

@@ -142,13 +142,30 @@ DEFAULT_OBSERVATIONS = "other-view"
 # benchmarks/README.md "Multi-observation study", 320x240 object scenes).
 OBSERVATION_ROBUST_SCALE = 0.01
 
-# The range guard (DeblurSettings.range_guard): an estimate more than RANGE_EXCESS outside
-# [0, 1] at more than RANGE_SHARE of the pixels of a RANGE_WINDOW-pixel square marks a region
-# the motion cannot explain (stereodeblur.deconv.intensity_range). PLACEHOLDER
+# The range guard (DeblurSettings.range_guard; stereodeblur.deconv.intensity_range): an estimate
+# more than RANGE_EXCESS outside [0, 1] at more than RANGE_SHARE of the pixels of a
+# RANGE_WINDOW-pixel square, in regions of at least RANGE_AREA of the image, is solved again with
+# no motion there. Fitted on the train split (benchmarks/results/range_guard_train_320x240.md and
+# the variants in README "The range guard"): without RANGE_AREA it acted on 5 / 8 / 9 of 40
+# scenes (true motion / scene flow / monocular), mostly on 0.1-1.5 % of the pixels (bright
+# surfaces, ringing), and lost up to 1.43 dB (family_0009); with 2 % it acts only where the
+# motion is aliased on stripes (family_0014: scene flow 11.38 -> 15.35 dB). A share of 0.1 acted
+# on family_0001's true motion (68 px blur over 2 px hatching) and lost 1.0 dB there; a 31-pixel
+# window gave family_1015 (test, scene flow) 25.95 dB instead of 27.44; an excess of 0.02 gave
+# family_0014 15.81 dB but acted on more of family_1015 to no gain.
 RANGE_EXCESS = 0.05
 RANGE_WINDOW = 15
 RANGE_SHARE = 0.2
+RANGE_AREA = 0.02
 DEFAULT_RANGE_GUARD = True
+
+
+def range_guard_signature(settings) -> str:
+    """The range guard's constants where ``settings`` use it, else '' (for result caches)."""
+    if not settings.range_guard:
+        return ""
+    return f" range guard {RANGE_EXCESS:g}/{RANGE_WINDOW}/{RANGE_SHARE:g}/{RANGE_AREA:g}"
+
 
 # Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre
 # instant alone, an identity "blur"; the operator's memory grows with samples x pixels (about

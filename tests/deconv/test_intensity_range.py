@@ -28,7 +28,19 @@ def test_a_region_outside_the_range_is_found_and_scattered_pixels_are_not():
     assert found.mean() < 0.15
 
 
-@pytest.mark.parametrize("bad", [{"share": 0.0}, {"share": 1.0}, {"excess": -0.1}, {"window": 0}])
+@pytest.mark.parametrize(
+    "bad", [{"share": 0.0}, {"share": 1.0}, {"excess": -0.1}, {"window": 0}, {"area": 1.0}]
+)
 def test_bad_constants_are_refused(bad):
     with pytest.raises(ValueError, match="need"):
         unexplained_regions(np.zeros((8, 8)), **(CONSTANTS | bad))
+
+
+def test_regions_smaller_than_the_area_are_dropped():
+    image = np.full((100, 100), 0.5)
+    image[10:40, 10:40] = np.where(np.arange(30) % 2, -0.5, 1.5)[None, :]  # 9 % of the image
+    image[70:78, 70:78] = 1.5  # 0.6 %
+    found = unexplained_regions(image, **CONSTANTS)
+    assert found[20:30, 20:30].all() and found[72:76, 72:76].all()
+    kept = unexplained_regions(image, **CONSTANTS, area=0.02)
+    assert kept[20:30, 20:30].all() and not kept[60:, 60:].any()

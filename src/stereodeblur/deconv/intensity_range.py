@@ -22,13 +22,22 @@ def range_excess(image: np.ndarray) -> np.ndarray:
 
 
 def unexplained_regions(
-    image: np.ndarray, *, excess: float, window: int, share: float
+    image: np.ndarray, *, excess: float, window: int, share: float, area: float = 0.0
 ) -> np.ndarray:
     """Bool ``(H, W)``: pixels whose ``window`` x ``window`` neighbourhood has more than
     ``share`` of its pixels more than ``excess`` outside [0, 1] in the sharp estimate
-    ``image`` (not clipped)."""
-    if not 0 < share < 1 or excess < 0 or window < 1:
-        raise ValueError(f"need 0 < share < 1, excess >= 0, window >= 1: {share, excess, window}")
+    ``image`` (not clipped), in connected regions of at least ``area`` of the image."""
+    if not 0 < share < 1 or excess < 0 or window < 1 or not 0 <= area < 1:
+        raise ValueError(
+            f"need 0 < share < 1, excess >= 0, window >= 1, 0 <= area < 1: "
+            f"{share, excess, window, area}"
+        )
     outside = (range_excess(image) > excess).astype(np.float32)
-    local = ndimage.uniform_filter(outside, size=window, mode="nearest")
-    return local > share
+    found = ndimage.uniform_filter(outside, size=window, mode="nearest") > share
+    if area > 0 and found.any():
+        labels, count = ndimage.label(found)
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        large = sizes >= area * found.size
+        large[0] = False
+        found = large[labels]
+    return found

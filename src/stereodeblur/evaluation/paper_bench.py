@@ -283,6 +283,7 @@ def _signature(column: Column, settings) -> dict:
     from before those options stay valid; the version of the alpha rules that predict the
     other view)."""
     from ..pipeline.alpha import rules_version
+    from ..settings import range_guard_signature
 
     own = column.settings(settings)
     fields = asdict(own)
@@ -295,6 +296,8 @@ def _signature(column: Column, settings) -> dict:
             del fields[name]
     if rules_version(own) is not None:
         fields["alpha_rules"] = rules_version(own)
+    if own.range_guard:
+        fields["range_guard"] = range_guard_signature(own).strip()
     return {**fields, "frame": FRAME}
 
 

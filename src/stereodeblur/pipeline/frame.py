@@ -241,12 +241,16 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
     (:func:`~stereodeblur.deconv.intensity_range.unexplained_regions`), solved once more with
     no motion there, data weight 1 and the further observations that see it dropped;
     ``(result, None)`` where there is no such region."""
+    from .. import settings as constants
     from ..blur.operator import without_motion
     from ..deconv.intensity_range import unexplained_regions
-    from ..settings import RANGE_EXCESS, RANGE_SHARE, RANGE_WINDOW
 
     unexplained = unexplained_regions(
-        result.image, excess=RANGE_EXCESS, window=RANGE_WINDOW, share=RANGE_SHARE
+        result.image,
+        excess=constants.RANGE_EXCESS,
+        window=constants.RANGE_WINDOW,
+        share=constants.RANGE_SHARE,
+        area=constants.RANGE_AREA,
     )
     if not unexplained.any():
         return result, None
