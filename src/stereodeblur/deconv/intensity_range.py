@@ -3,9 +3,9 @@
 A blurred pixel is an average of sharp intensities in [0, 1]. If a blur operator can only
 explain the blurred frame with a sharp estimate far outside that range over a whole region,
 the operator is wrong there: e.g. a motion aliased on a fine periodic texture, whose blur
-runs across the stripes that the blurred frame still shows (README, "Where the defaults come
-from"). :func:`unexplained_regions` finds such regions; the pipeline deblurs them with no
-motion instead (``DeblurSettings.range_guard``).
+runs across the stripes that the blurred frame still shows (README, "The range guard").
+:func:`unexplained_regions` finds such regions; the pipeline deblurs them with no motion
+instead (``DeblurSettings.range_guard``).
 """
 
 from __future__ import annotations
