@@ -93,6 +93,12 @@ def _terminate(pool) -> None:
         if process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
             process.kill()
             process.join(timeout=5)
+    # The pool's manager thread sees the workers gone and ends; left running, it could meet
+    # the pool's closed pipes at interpreter exit and print a traceback (seen once under
+    # SIGTERM in tests/faults/test_processes.py).
+    manager = getattr(pool, "_executor_manager_thread", None)
+    if manager is not None:
+        manager.join(timeout=5)
 
 
 @contextlib.contextmanager
