@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -71,7 +72,11 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("pairs", nargs="+", help="SCENE:SOURCE")
     parser.add_argument("--variants", default=json.dumps(VARIANTS), help="JSON list")
-    parser.add_argument("--work", default="/tmp/calib/work/320x240")
+    parser.add_argument(
+        "--work",
+        default=str(Path(tempfile.gettempdir()) / "stereodeblur_calibration" / "320x240"),
+        help="calibrate_defaults.py's cache folder of one size (default: its default, 320x240)",
+    )
     args = parser.parse_args(argv)
     variants = [tuple(v) for v in json.loads(args.variants)]
     head = ["scene", "motion", "no guard"] + ["/".join(f"{c:g}" for c in v) for v in variants]

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -66,7 +67,8 @@ def report(rows, args, seconds: float) -> str:
         f"# The range guard, {args.split} split, {len(rows)} scenes, {args.size}",
         "",
         f"Command: `python benchmarks/study_range_guard.py --split {args.split} --scenes "
-        f"{args.scenes} --size {args.size} --jobs {args.jobs}`; {seconds / 60:.1f} min. "
+        f"{args.scenes} --size {args.size} --jobs {args.jobs} --work {args.work}`; "
+        f"{seconds / 60:.1f} min. "
         f"Code: {protocol.code_version()}.",
         "",
         "Where the guard acted (share of the pixels it deblurred with no motion; PSNR dB "
@@ -107,7 +109,11 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="320x240")
     parser.add_argument("--scenes", type=int, default=40)
     parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--work", default=str(Path("/tmp/calib/work")))
+    parser.add_argument(
+        "--work",
+        default=str(Path(tempfile.gettempdir()) / "stereodeblur_calibration"),
+        help="calibrate_defaults.py's cache folder (the same default)",
+    )
     parser.add_argument("--output", default=None, help="markdown output (and .json beside)")
     args = parser.parse_args(argv)
     width, height = (int(v) for v in args.size.lower().split("x"))
