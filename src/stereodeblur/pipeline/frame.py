@@ -241,7 +241,7 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
     (:func:`~stereodeblur.deconv.intensity_range.unexplained_regions`), solved once more with
     no motion there, data weight 1 and the further observations that see it dropped;
     ``(result, None)`` where there is no such region."""
-    from .. import settings as constants
+    from .. import settings as constants  # read at call time: the variants study sets them
     from ..blur.operator import without_motion
     from ..deconv.intensity_range import unexplained_regions
 
