@@ -66,6 +66,7 @@ class SettingOption:
     type: Callable[[str], object] | None = None
     choices: tuple[str, ...] | None = None
     metavar: str | None = None
+    switch: bool = False  # a True/False field: --flag and --no-flag
 
 
 def _options() -> tuple[SettingOption, ...]:
@@ -142,6 +143,13 @@ def _options() -> tuple[SettingOption, ...]:
             type=integer(*SEGMENTS),
             metavar="N",
         ),
+        SettingOption(
+            "range_guard",
+            "--range-guard",
+            "deblur with no motion where the estimate leaves [0, 1] over a whole region, which "
+            "the motion cannot explain (default: on; the paper has none)",
+            switch=True,
+        ),
     )
 
 
@@ -168,24 +176,23 @@ def add_settings_options(
 ) -> None:
     """Add the options of ``fields`` (default: every field with an option) to ``parser``."""
     options = {o.field: o for o in _options()}
-    wanted = list(options) + ["boundary_weights", "range_guard"] if fields is None else list(fields)
+    wanted = list(options) + ["boundary_weights"] if fields is None else list(fields)
     defaults = _defaults()
     g = parser.add_argument_group("method (every variant of the paper's tables is a combination)")
     for name in wanted:
         if name == "boundary_weights":
             _add_boundary_weights(g, defaults[name])
             continue
-        if name == "range_guard":
+        o = options[name]
+        if o.switch:
             g.add_argument(
-                "--range-guard",
+                o.flag,
                 dest=name,
                 action=argparse.BooleanOptionalAction,
                 default=defaults[name],
-                help="deblur with no motion where the estimate leaves [0, 1] over a whole "
-                "region, which the motion cannot explain (default: on; the paper has none)",
+                help=o.help,
             )
             continue
-        o = options[name]
         g.add_argument(
             o.flag,
             dest=name,
@@ -228,8 +235,6 @@ def option_for(parameter: str | None) -> str | None:
 
     if parameter == "boundary_weights":
         return "--boundary-weights"
-    if parameter == "range_guard":
-        return "--range-guard"
     flags = {o.field: o.flag for o in _options()} | SOURCE_OPTIONS | OTHER_OPTIONS
     return flags.get(parameter)
 
@@ -239,11 +244,12 @@ def arguments_for(settings) -> list[str]:
     out: list[str] = []
     for o in _options():
         value = getattr(settings, o.field)
-        if value is not None:
+        if o.switch:
+            out.append(o.flag if value else "--no-" + o.flag[2:])
+        elif value is not None:
             out += [o.flag, repr(value) if isinstance(value, float) else str(value)]
     if settings.boundary_weights == "none":
         out.append("--no-boundary-weights")
     else:
         out += ["--boundary-weights", settings.boundary_weights]
-    out.append("--range-guard" if settings.range_guard else "--no-range-guard")
     return out

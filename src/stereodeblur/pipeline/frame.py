@@ -255,10 +255,9 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
     if not unexplained.any():
         return result, None
     report(progress, f"range guard: {unexplained.mean():.1%} of the pixels with no motion")
-    update = copy.deepcopy(terms.update)
-    for step_holder in (update, getattr(update, "update", None)):
-        if hasattr(step_holder, "history"):
-            step_holder.history.clear()
+    update = copy.deepcopy(terms.update)  # used by the first solve: start its steps afresh
+    if update is not None:
+        update.history.clear()
     start = terms.weights if weights is None else weights
     result = solve(
         blurred,
@@ -306,21 +305,20 @@ def _alpha_choice_solve(
 
     runs, errors = [], []
     for alpha in candidates(rule, base.alpha):
-        *chosen, image = run(alpha)
-        errors.append(prediction_error(image, other, border=border))
-        runs.append(chosen)
+        runs.append(run(alpha))
+        errors.append(prediction_error(runs[-1][2], other, border=border))
         if searched(rule, errors):
             break
-    terms, result = runs[choose(errors, rule)]
-    if rule == "held-out" and choose(errors, rule) == 0 and other.observation is not None:
-        floor = np.clip(result.image, 0.0, 1.0)
-        gated = [observed_error(floor, other.observation, border=border)]
+    best = choose(errors, rule)
+    terms, result, image = runs[best]
+    if rule == "held-out" and best == 0 and other.observation is not None:
+        gated = [observed_error(image, other.observation, border=border)]
         for alpha in below_floor(base.alpha, gated[0], base.noise_sigma):
-            *below, image = run(alpha)
-            gated.append(observed_error(image, other.observation, border=border))
+            below = run(alpha)
+            gated.append(observed_error(below[2], other.observation, border=border))
             if gated[-1] >= gated[-2]:
                 break
-            terms, result = below
+            terms, result, _ = below
     if observations:
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))

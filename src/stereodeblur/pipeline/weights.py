@@ -31,8 +31,7 @@ class DataTerms:
         times :func:`~stereodeblur.deconv.weights.hidden_weights` with an occlusion-aware
         operator, else 1.
     update : callable or None
-        For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``
-        (a masked update in ``.update.history``).
+        For ``deblur_irls(update_weights=...)``; it keeps its steps in ``.history``.
     anchor : ndarray, float32, shape (H, W), or None
         For ``deblur_irls(anchor=...)``; ``'adaptive'`` only, and None where the
         operator's rows near motion boundaries come from the dense flow.
@@ -56,7 +55,7 @@ class DataTerms:
     @property
     def steps(self) -> tuple:
         """The weight updates' steps after a run (empty with fixed weights)."""
-        return tuple(getattr(getattr(self.update, "update", self.update), "history", ()))
+        return tuple(getattr(self.update, "history", ()))
 
 
 class _MaskedUpdate:
@@ -67,6 +66,10 @@ class _MaskedUpdate:
 
     def __call__(self, n, blurred, residual, estimate, weights):
         return self.update(n, blurred, residual, estimate, weights) * self.mask
+
+    @property
+    def history(self) -> list:
+        return self.update.history
 
 
 def frame_trust(

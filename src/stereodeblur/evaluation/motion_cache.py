@@ -1,0 +1,67 @@
+"""Frame 1's motion (left view) for the benchmarks, computed once and stored.
+
+:func:`cached_motion` stores the estimated scene flow and the initial optical flow of a scene
+in a cache folder and reads them back on later runs (``bench paper``,
+``benchmarks/calibrate_defaults.py``), so that every column of a scene, in every run, uses
+one motion.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .paper_columns import FRAME
+
+
+def quiet(function, *args, **kwargs):
+    """Call ``function``, returning ``(result, warning messages)`` instead of warning."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = function(*args, **kwargs)
+    return result, tuple(dict.fromkeys(str(w.message) for w in caught))
+
+
+def cached_motion(scene, source: str, settings, cache: Path):
+    """The :class:`~stereodeblur.pipeline.FrameMotion` of frame 1 (left) from ``source``.
+
+    Scene flow and initial flow are stored under ``cache`` and read back on later runs;
+    gt motion is recomputed (it is cheap). Returns ``(motion, seconds, warnings)``.
+    """
+    from dataclasses import replace
+
+    from ..io.outputs import atomic_write
+    from ..pipeline import FrameMotion, dense_flow, frame_motion, neighbour_of
+    from ..sceneflow.storage import load_sceneflow, save_sceneflow
+
+    kernels = "displacement" if source == "initial-flow" else settings.kernels
+    settings = replace(settings, motion_source=source, kernels=kernels)
+    neighbour = neighbour_of(FRAME, scene.num_frames)
+    path = cache / f"{source}.npz"
+    if source == "sceneflow" and path.is_file():
+        sf = load_sceneflow(path)
+        dense = dense_flow(scene, FRAME, "left", scene.read_frame("left", FRAME))
+        motion = FrameMotion(FRAME, neighbour, "left", sf, sf.flow(), sf.reversed().flow(), dense)
+        return motion, 0.0, ()
+    if source == "initial-flow" and path.is_file():
+        with np.load(path) as data:
+            backward = data["backward"] if data["backward"].size else None
+            motion = FrameMotion(FRAME, neighbour, "left", None, data["forward"], backward)
+        return motion, 0.0, ()
+    start = time.perf_counter()
+    blurred = scene.read_frame("left", FRAME)
+    motion, messages = quiet(frame_motion, scene, FRAME, "left", settings, blurred)
+    seconds = time.perf_counter() - start
+    cache.mkdir(parents=True, exist_ok=True)
+    if source == "sceneflow":
+        save_sceneflow(path, motion.sceneflow)
+    elif source == "initial-flow":
+        backward = np.zeros(0) if motion.flow_backward is None else motion.flow_backward
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, forward=motion.flow_forward, backward=backward)
+        atomic_write(path, buffer.getvalue())
+    return motion, seconds, messages
