@@ -47,10 +47,11 @@ from ..settings import (
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 5
+RULES_VERSION = 6
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results: 5 since stop 29 (the noise gate below the floor), 1 before (2 to 4
-were candidates of stops 28 and 29, not adopted)."""
+cached benchmark results: 6 since stop 31 (every candidate range-guarded before it is
+scored), 5 since stop 29 (the noise gate below the floor), 1 before (2 to 4 were candidates
+of stops 28 and 29, not adopted)."""
 
 
 def rules_version(settings) -> int | None:

@@ -184,7 +184,7 @@ def deblur_view(
     if settings.alpha == "cross-view" and other is None:
         raise InputError("alpha='cross-view' needs the other view", parameter="alpha")
     if settings.alpha in ("cross-view", "held-out") and other is not None:
-        terms, result = _alpha_choice_solve(
+        terms, result, unexplained = _alpha_choice_solve(
             scene,
             window,
             view,
@@ -199,27 +199,16 @@ def deblur_view(
         )
     else:
         terms = terms or data_terms(scene, window, view, operator, settings)
-        result = solve(
-            blurred,
-            operator.operator,
-            terms,
-            settings,
-            weights=weights,
-            observations=observations,
-            progress=progress,
+        result, unexplained = _guarded_solve(
+            blurred, operator, terms, settings, weights, observations, progress
         )
-    unexplained = None
-    if settings.range_guard:
-        result, unexplained = _range_guard(
-            blurred, operator, terms, settings, weights, observations, result, progress
+    if unexplained is not None:
+        warnings.warn(
+            f"frame {window.index} {view}: the motion cannot explain "
+            f"{unexplained.mean():.0%} of the pixels (the estimate leaves [0, 1] there); "
+            "deblurred with no motion there (range guard)",
+            stacklevel=2,
         )
-        if unexplained is not None:
-            warnings.warn(
-                f"frame {window.index} {view}: the motion cannot explain "
-                f"{unexplained.mean():.0%} of the pixels (the estimate leaves [0, 1] there); "
-                "deblurred with no motion there (range guard)",
-                stacklevel=2,
-            )
     timings["deconvolution"] = time.perf_counter() - start
     return FrameResult(
         window.index,
@@ -234,6 +223,24 @@ def deblur_view(
         tuple(o.name for o in observations),
         unexplained,
     )
+
+
+def _guarded_solve(blurred, operator, terms, settings, weights, observations, progress):
+    """``(result, unexplained)``: :func:`solve` with ``operator``'s operator, then, with
+    ``settings.range_guard``, :func:`_range_guard` (``unexplained`` None where it did not
+    act)."""
+    result = solve(
+        blurred,
+        operator.operator,
+        terms,
+        settings,
+        weights=weights,
+        observations=observations,
+        progress=progress,
+    )
+    if not settings.range_guard:
+        return result, None
+    return _range_guard(blurred, operator, terms, settings, weights, observations, result, progress)
 
 
 def _range_guard(blurred, operator, terms, settings, weights, observations, result, progress):
@@ -289,8 +296,10 @@ def _alpha_choice_solve(
     :func:`.alpha.searched`, :func:`.alpha.choose`; below the floor only through the noise
     gate, :func:`.alpha.below_floor`); with ``observations``, solve once more
     with them at that alpha (the other view is then held out of the choice even where it is
-    observed). ``base``: the data terms at :func:`_choice_settings`, if already computed.
-    Returns the data terms and the result."""
+    observed). Every solution is range-guarded (:func:`_guarded_solve`) before it is scored,
+    so that the choice judges what the view's result would be. ``base``: the data terms at
+    :func:`_choice_settings`, if already computed. Returns the data terms, the result and
+    the region the guard deblurred with no motion (or None)."""
     rule = settings.alpha
     fixed = _choice_settings(settings)
     if base is None:
@@ -300,38 +309,32 @@ def _alpha_choice_solve(
     def run(alpha):
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
-        result = solve(blurred, operator.operator, terms, fixed, weights=weights, progress=progress)
-        return terms, result, np.clip(result.image, 0.0, 1.0)
+        result, unexplained = _guarded_solve(blurred, operator, terms, fixed, weights, (), progress)
+        return terms, result, unexplained, np.clip(result.image, 0.0, 1.0)
 
     runs, errors = [], []
     for alpha in candidates(rule, base.alpha):
         runs.append(run(alpha))
-        errors.append(prediction_error(runs[-1][2], other, border=border))
+        errors.append(prediction_error(runs[-1][3], other, border=border))
         if searched(rule, errors):
             break
     best = choose(errors, rule)
-    terms, result, image = runs[best]
+    terms, result, unexplained, image = runs[best]
     if rule == "held-out" and best == 0 and other.observation is not None:
         gated = [observed_error(image, other.observation, border=border)]
         for alpha in below_floor(base.alpha, gated[0], base.noise_sigma):
             below = run(alpha)
-            gated.append(observed_error(below[2], other.observation, border=border))
+            gated.append(observed_error(below[3], other.observation, border=border))
             if gated[-1] >= gated[-2]:
                 break
-            terms, result, _ = below
+            terms, result, unexplained, _ = below
     if observations:
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
-        result = solve(
-            blurred,
-            operator.operator,
-            terms,
-            fixed,
-            weights=weights,
-            observations=observations,
-            progress=progress,
+        result, unexplained = _guarded_solve(
+            blurred, operator, terms, fixed, weights, observations, progress
         )
-    return terms, result
+    return terms, result, unexplained
 
 
 def needs_stereo_pass(settings: DeblurSettings) -> bool:
