@@ -59,6 +59,7 @@ import numpy as np
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
+from stereodeblur.sceneflow.from_gt import FIT_VERSION
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -192,14 +193,17 @@ def _log(message: str) -> None:
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    so results from before those options stay valid) and, for the rules that predict the
-    other view, their version (unless not ``rules``: what does not depend on the alpha)."""
+    so results from before those options stay valid), for the rules that predict the
+    other view their version (unless not ``rules``: what does not depend on the alpha) and
+    for the true motion the version of its fit."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     version = rules_version(settings) if rules else None
     stored = MOTION_STORED if settings.motion_source == "sceneflow" else ""
+    fit = f" true motion fit {FIT_VERSION}" if settings.motion_source == "gt" else ""
     guard = range_guard_signature(settings)
-    return text + ("" if version is None else f" alpha rules {version}") + stored + guard
+    rules_text = "" if version is None else f" alpha rules {version}"
+    return text + rules_text + stored + fit + guard
 
 
 def _cached(path: Path, signature: str) -> dict | None:

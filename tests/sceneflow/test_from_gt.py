@@ -100,3 +100,37 @@ def test_background_covered_at_t1_keeps_its_own_motion():
     # Strip 3 (x = 30..39) is 60 % covered by the foreground at t + 1.
     np.testing.assert_allclose(fitted.twists[3], 0.0, atol=1e-6)
     np.testing.assert_allclose(fitted.twists[4], twists[1], atol=1e-6)
+
+
+def test_a_segment_covered_entirely_at_t1_keeps_its_own_motion():
+    """The foreground (x >= 40) moves 27 px left and covers strips 2 and 3 (x = 20..39)
+    entirely at t + 1: they have no true disparity at t + 1, only their true flow."""
+    shape = (40, 80)
+    labels = np.zeros(shape, dtype=np.int32)
+    labels[:, 40:] = 1
+    normals = np.array([[0.0, 0.0, 0.2], [0.0, 0.0, 0.5]])  # background 5 m, foreground 2 m
+    twists = np.array([[0.0] * 6, [-0.45, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    truth = SceneFlow(CAMERA, labels, normals, twists, np.zeros(shape, bool))
+    d1 = _next_disparity_map(truth)
+    assert np.all(d1[:, 20:40] == 6.0)  # the foreground's disparity at t + 1
+    strips = (np.arange(80)[None, :] // 10).repeat(40, 0).astype(np.int32)
+    fitted = sceneflow_from_gt(CAMERA, truth.disparity(), d1, truth.flow(), strips)
+    np.testing.assert_allclose(fitted.twists[2:4], 0.0, atol=1e-6)
+    np.testing.assert_allclose(fitted.flow(), truth.flow(), atol=1e-4)
+
+
+def test_a_steep_smooth_flow_is_one_surface():
+    """A ground plane under fast forward motion: its flow grows by more than 1 px per pixel
+    towards the image bottom, smoothly; it is not cut, and its motion is recovered."""
+    shape = (60, 80)
+    camera = StereoCamera([[120.0, 0, 40], [0, 120.0, -10], [0, 0, 1]], 0.1)  # looks down
+    normals = np.array([[0.0, 1 / 1.5, 0.0]])  # the road, 1.5 m below the camera
+    twists = np.array([[0.0, 0.0, -0.8, 0.0, 0.0, 0.0]])  # 0.8 m forward per frame
+    truth = SceneFlow(camera, np.zeros(shape, np.int32), normals, twists, np.zeros(shape, bool))
+    flow = truth.flow()
+    assert np.abs(np.diff(flow[..., 1], axis=0)).max() > 1.0
+    blocks = ((np.arange(60)[:, None] // 15) * 4 + np.arange(80)[None, :] // 20).astype(np.int32)
+    split = split_at_discontinuities(blocks, truth.disparity(), flow)
+    assert split.max() + 1 == 16
+    fitted = sceneflow_from_gt(camera, truth.disparity(), np.full(shape, np.nan), flow, split)
+    np.testing.assert_allclose(fitted.flow(), flow, atol=1e-3)

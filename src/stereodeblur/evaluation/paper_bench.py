@@ -228,8 +228,9 @@ def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'``,
     ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on, so results
     from before those options stay valid; the version of the alpha rules that predict the
-    other view)."""
+    other view; the version of the true motion's fit)."""
     from ..pipeline.alpha import rules_version
+    from ..sceneflow.from_gt import FIT_VERSION
     from ..settings import range_guard_signature
 
     own = column.settings(settings)
@@ -245,6 +246,8 @@ def _signature(column: Column, settings) -> dict:
         fields["alpha_rules"] = rules_version(own)
     if own.range_guard:
         fields["range_guard"] = range_guard_signature(own).strip()
+    if own.motion_source == "gt":
+        fields["gt_fit"] = FIT_VERSION
     return {**fields, "frame": FRAME}
 
 

@@ -3,8 +3,9 @@
 Planes are fitted in disparity space, where a 3D plane is the affine function
 ``d = a x + b y + c`` of the left-view pixel (see :mod:`stereodeblur.geometry.plane`).
 Rigid motions ``Q = R P + T`` are fitted by the weighted Kabsch / Umeyama method
-without scale. The ``robust_*`` variants trim outliers by iterated refits on the
-points whose residual is within a multiple of the median residual.
+without scale, or to the projections of ``R P + T`` (:func:`fit_rigid_to_projections`).
+The ``robust_*`` variants trim outliers by iterated refits on the points whose residual
+is within a multiple of the median residual.
 """
 
 from __future__ import annotations
@@ -77,3 +78,21 @@ def robust_fit_rigid(P, Q, *, num_rounds: int = 3, scale: float = 3.0, floor: fl
         keep = new
         R, T = fit_rigid(P[keep], Q[keep])
     return R, T
+
+
+def fit_rigid_to_projections(
+    P: np.ndarray, xy: np.ndarray, K: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and translation whose ``K (R P + T)`` projects the points ``P`` (n, 3) to
+    the pixels ``xy`` (n, 2): OpenCV's SQPnP (n >= 3), refined by Levenberg-Marquardt on
+    the reprojection error."""
+    import cv2
+
+    P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
+    xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
+    K = np.asarray(K, dtype=np.float64)
+    if len(P) < 3:
+        raise ValueError(f"a rigid motion needs at least 3 projected points, got {len(P)}")
+    _, rvec, tvec = cv2.solvePnP(P, xy, K, None, flags=cv2.SOLVEPNP_SQPNP)
+    rvec, tvec = cv2.solvePnPRefineLM(P, xy, K, None, rvec, tvec)
+    return cv2.Rodrigues(rvec)[0], tvec.ravel()
