@@ -81,11 +81,15 @@ def robust_fit_rigid(P, Q, *, num_rounds: int = 3, scale: float = 3.0, floor: fl
 
 
 def fit_rigid_to_projections(
-    P: np.ndarray, xy: np.ndarray, K: np.ndarray
+    P: np.ndarray, xy: np.ndarray, K: np.ndarray, *, start=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rotation and translation whose ``K (R P + T)`` projects the points ``P`` (n, 3) to
-    the pixels ``xy`` (n, 2): OpenCV's SQPnP (n >= 3), refined by Levenberg-Marquardt on
-    the reprojection error."""
+    the pixels ``xy`` (n, 2): Levenberg-Marquardt on the reprojection error from ``start``
+    ``(R, T)``, or from OpenCV's SQPnP (n >= 3) without one.
+
+    A small, nearly planar patch has two poses that project it almost alike (a tilt of the
+    plane for a shift in depth); SQPnP may return either, a ``start`` near one keeps it.
+    """
     import cv2
 
     P = np.ascontiguousarray(P, dtype=np.float64).reshape(-1, 3)
@@ -93,6 +97,9 @@ def fit_rigid_to_projections(
     K = np.asarray(K, dtype=np.float64)
     if len(P) < 3:
         raise ValueError(f"a rigid motion needs at least 3 projected points, got {len(P)}")
-    _, rvec, tvec = cv2.solvePnP(P, xy, K, None, flags=cv2.SOLVEPNP_SQPNP)
-    rvec, tvec = cv2.solvePnPRefineLM(P, xy, K, None, rvec, tvec)
+    if start is None:
+        _, rvec, tvec = cv2.solvePnP(P, xy, K, None, flags=cv2.SOLVEPNP_SQPNP)
+    else:
+        rvec, tvec = cv2.Rodrigues(np.asarray(start[0], np.float64))[0], np.array(start[1], float)
+    rvec, tvec = cv2.solvePnPRefineLM(P, xy, K, None, rvec, tvec.reshape(3, 1))
     return cv2.Rodrigues(rvec)[0], tvec.ravel()

@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from ..geometry.camera import StereoCamera
 from ..geometry.plane import plane_from_disparity_coefficients
 from ..geometry.rigid import se3_log
-from .fitting import fit_rigid_to_projections, robust_fit_plane_disparity
+from .fitting import fit_rigid_to_projections, robust_fit_plane_disparity, robust_fit_rigid
 from .model import SceneFlow
 
 FIT_VERSION = 2
@@ -186,17 +186,19 @@ def sceneflow_from_gt(
     bounds = np.searchsorted(labels.ravel()[order], np.arange(num + 1))
     P = camera.backproject(x, y, camera.disparity_to_depth(np.where(valid0, d0, 1.0)))
     xs, ys, ds = x.ravel()[order], y.ravel()[order], d0.ravel()[order]
+    Q = camera.backproject(x1, y1, camera.disparity_to_depth(np.where(valid, d1, 1.0)))
     Ps, targets = P.reshape(-1, 3)[order], np.column_stack([x1.ravel(), y1.ravel()])[order]
-    v0s, ps = valid0.ravel()[order], projected.ravel()[order]
+    Qs = Q.reshape(-1, 3)[order]
+    v0s, ps, vs = valid0.ravel()[order], projected.ravel()[order], valid.ravel()[order]
     for k in range(num):
         s = slice(bounds[k], bounds[k + 1])
-        m0, m = v0s[s], ps[s]
+        m0, m, seen = v0s[s], ps[s], vs[s]
         if m0.sum() >= 3:
             abc = robust_fit_plane_disparity(xs[s][m0], ys[s][m0], ds[s][m0])
             normals[k] = plane_from_disparity_coefficients(camera, abc)
             has_plane[k] = True
         if m.sum() >= 4 and not _degenerate(Ps[s][m]):
-            R, T = fit_rigid_to_projections(Ps[s][m], targets[s][m], camera.K)
+            R, T = _fit_motion(Ps[s][m], targets[s][m], Ps[s][seen], Qs[s][seen], camera.K)
             M = np.eye(4)
             M[:3, :3], M[:3, 3] = R, T
             twists[k] = se3_log(M)
@@ -204,6 +206,21 @@ def sceneflow_from_gt(
     _fill_from_nearest(labels, normals, has_plane)
     _fill_from_nearest(labels, twists, has_motion)
     return SceneFlow(camera, labels, normals, twists, ~valid)
+
+
+def _fit_motion(P, xy, seen_P, seen_Q, K):
+    """The rigid motion of a segment whose points ``P`` project to ``xy`` at t + 1: fitted to
+    the projections, from SQPnP and, where some points are seen at t + 1 (``seen_P`` at
+    ``seen_Q``), also from their 3D fit; of the two, the one nearer ``seen_Q``."""
+    R, T = fit_rigid_to_projections(P, xy, K)
+    if len(seen_P) < 3 or _degenerate(seen_P):
+        return R, T
+    other = fit_rigid_to_projections(P, xy, K, start=robust_fit_rigid(seen_P, seen_Q))
+
+    def distance(motion):
+        return np.median(np.linalg.norm(seen_P @ motion[0].T + motion[1] - seen_Q, axis=1))
+
+    return min((R, T), other, key=distance)
 
 
 def _hidden_next(disparity, x1, y1, known, *, jump: float = 1.0) -> np.ndarray:
