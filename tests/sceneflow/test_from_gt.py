@@ -134,3 +134,18 @@ def test_a_steep_smooth_flow_is_one_surface():
     assert split.max() + 1 == 16
     fitted = sceneflow_from_gt(camera, truth.disparity(), np.full(shape, np.nan), flow, split)
     np.testing.assert_allclose(fitted.flow(), flow, atol=1e-3)
+
+
+def test_small_patches_keep_their_pose():
+    """Small segments of a plane under forward motion: each projects almost alike under
+    a second pose (tilted, about 1 rad of rotation); their points seen at t + 1 decide."""
+    shape = (60, 80)
+    labels = np.zeros(shape, dtype=np.int32)
+    normals = np.array([[-0.016, -0.0096, 1 / 3]])
+    twists = np.array([[0.0, 0.0, -0.12, 0.0, 0.0, 0.0]])
+    truth = SceneFlow(CAMERA, labels, normals, twists, np.zeros(shape, bool))
+    blocks = ((np.arange(60)[:, None] // 6) * 10 + np.arange(80)[None, :] // 8).astype(np.int32)
+    fitted = sceneflow_from_gt(
+        CAMERA, truth.disparity(), _next_disparity_map(truth), truth.flow(), blocks
+    )
+    np.testing.assert_allclose(fitted.twists, np.repeat(twists, 100, axis=0), atol=1e-4)
