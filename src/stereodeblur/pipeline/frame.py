@@ -10,7 +10,7 @@ import copy
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -288,6 +288,16 @@ def _choice_settings(settings: DeblurSettings) -> DeblurSettings:
     return settings
 
 
+class _Candidate(NamedTuple):
+    """One alpha of a choice: its data terms, its (range-guarded) result, the guard's region
+    (or None) and the result clipped to [0, 1], which the choice scores."""
+
+    terms: DataTerms
+    result: DeblurResult
+    unexplained: np.ndarray | None
+    image: np.ndarray
+
+
 def _alpha_choice_solve(
     scene, window, view, blurred, operator, settings, other, weights, observations, progress, base
 ):
@@ -306,28 +316,29 @@ def _alpha_choice_solve(
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
 
-    def run(alpha):
+    def run(alpha) -> _Candidate:
         report(progress, f"alpha {alpha:g}")
         terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
         result, unexplained = _guarded_solve(blurred, operator, terms, fixed, weights, (), progress)
-        return terms, result, unexplained, np.clip(result.image, 0.0, 1.0)
+        return _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
 
     runs, errors = [], []
     for alpha in candidates(rule, base.alpha):
         runs.append(run(alpha))
-        errors.append(prediction_error(runs[-1][3], other, border=border))
+        errors.append(prediction_error(runs[-1].image, other, border=border))
         if searched(rule, errors):
             break
     best = choose(errors, rule)
-    terms, result, unexplained, image = runs[best]
+    chosen = runs[best]
     if rule == "held-out" and best == 0 and other.observation is not None:
-        gated = [observed_error(image, other.observation, border=border)]
+        gated = [observed_error(chosen.image, other.observation, border=border)]
         for alpha in below_floor(base.alpha, gated[0], base.noise_sigma):
             below = run(alpha)
-            gated.append(observed_error(below[3], other.observation, border=border))
+            gated.append(observed_error(below.image, other.observation, border=border))
             if gated[-1] >= gated[-2]:
                 break
-            terms, result, unexplained, _ = below
+            chosen = below
+    terms, result, unexplained, _ = chosen
     if observations:
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
