@@ -193,11 +193,12 @@ def _log(message: str) -> None:
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    so results from before those options stay valid), for the rules that predict the
-    other view their version (unless not ``rules``: what does not depend on the alpha) and
-    for the true motion the version of its fit."""
+    ``boundary_flow`` only when off, so results from before those options stay valid), for
+    the rules that predict the other view their version (unless not ``rules``: what does not
+    depend on the alpha) and for the true motion the version of its fit."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
+    text = text.replace(", boundary_flow=True", "")
     version = rules_version(settings) if rules else None
     stored = MOTION_STORED if settings.motion_source == "sceneflow" else ""
     fit = f" true motion fit {FIT_VERSION}" if settings.motion_source == "gt" else ""

@@ -1,5 +1,7 @@
 """The pipeline's boundary-weight, boundary-mask and alpha switches."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -179,6 +181,13 @@ def test_the_operator_is_occlusion_aware_only_without_dense_flow_rows(scene, mon
     hidden = hidden_fraction(visible) > 0
     assert hidden.any()
     assert np.all(result.result.weights[hidden] < 1)
+    # --no-boundary-flow: no dense flow, the estimated scene flow's occlusion-aware rows
+    own = deblur_frame(scene, 1, settings=replace(estimated, boundary_flow=False))
+    assert own.motion.boundary_flow is None
+    np.testing.assert_array_equal(
+        visibilities[3],
+        sceneflow_visibility(own.motion.sceneflow, scene.info.exposure, 8),
+    )
 
 
 def test_trust_uses_both_neighbouring_frames(scene):
@@ -203,6 +212,7 @@ def test_trust_uses_both_neighbouring_frames(scene):
         ("alpha", "often", "alpha"),
         ("boundary_weights", "always", "boundary weights"),
         ("boundary_mask", "estimated", "boundary mask"),
+        ("boundary_flow", "yes", "boundary_flow"),
     ],
 )
 def test_bad_settings_are_input_errors(field, value, message):

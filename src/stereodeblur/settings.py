@@ -130,6 +130,12 @@ GATE_MARGIN = 0.1
 # with keeps 'adaptive': its anchor helps displacement kernels, which 'gated' drops (test
 # split, 40 scenes at 320x240: 28.50 dB against 27.99 dB; calibrate_defaults_test_320x240.md).
 MONOCULAR_BOUNDARY_WEIGHTS = "adaptive"
+# The dense flow's rows near motion boundaries (DeblurSettings.boundary_flow). bench paper's
+# object scenes at 640x480 (benchmarks/results/boundary_rows_640x480.md), noiseless / noisy:
+# with the estimated scene flow 32.65 / 31.82 dB, against 32.20 / 30.52 with its own
+# occlusion-aware rows (-2.77 dB on spheres_noisy); with the true motion 33.26 / 32.57 against
+# 34.49 / 33.54. Off pays only where the scene flow's boundaries are exact.
+DEFAULT_BOUNDARY_FLOW = True
 # The other view's blurred frame as a second data term (alpha chosen from the view's own):
 # train split (40 scenes, 320x240) +0.44 / +0.27 dB over the single observation (true motion /
 # scene flow), worst -0.33 / -0.66 dB (results/observations_train_320x240.md); bench paper's
@@ -262,6 +268,12 @@ class DeblurSettings:
         :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow: with
         ``motion_source='initial-flow'`` or a given motion of one view every frame has its
         single observation.
+    boundary_flow : bool
+        With ``boundary_weights`` ``'gated'`` or ``'adaptive'``, homography kernels and an
+        estimated scene flow: take the blur near motion boundaries from the dense optical flow
+        (default). False: the scene flow's own occlusion-aware rows everywhere, as with the true
+        motion; better where the scene flow's boundaries are exact
+        (:data:`DEFAULT_BOUNDARY_FLOW`).
     range_guard : bool
         Where the estimate leaves [0, 1] over a whole region (:data:`RANGE_EXCESS`,
         :data:`RANGE_WINDOW`, :data:`RANGE_SHARE`), the motion cannot have made the frame
@@ -286,6 +298,7 @@ class DeblurSettings:
     boundary_weights: str = DEFAULT_BOUNDARY_WEIGHTS
     boundary_mask: str | None = None
     observations: str = DEFAULT_OBSERVATIONS
+    boundary_flow: bool = DEFAULT_BOUNDARY_FLOW
     range_guard: bool = DEFAULT_RANGE_GUARD
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
@@ -339,6 +352,8 @@ class DeblurSettings:
             raise InputError(
                 f"observations must be one of {', '.join(OBSERVATIONS)}, got {self.observations!r}"
             )
+        if not isinstance(self.boundary_flow, bool):
+            raise InputError(f"boundary_flow must be True or False, got {self.boundary_flow!r}")
         if not isinstance(self.range_guard, bool):
             raise InputError(f"range_guard must be True or False, got {self.range_guard!r}")
         if not isinstance(self.sceneflow, SceneFlowSettings):

@@ -144,6 +144,14 @@ def _options() -> tuple[SettingOption, ...]:
             metavar="N",
         ),
         SettingOption(
+            "boundary_flow",
+            "--boundary-flow",
+            "near motion boundaries, the blur from the dense optical flow where it predicts the "
+            "neighbouring frames better (default: on); off: the scene flow's occlusion-aware "
+            "blur everywhere, better with an exact scene flow",
+            switch=True,
+        ),
+        SettingOption(
             "range_guard",
             "--range-guard",
             "deblur with no motion where the estimate leaves [0, 1] over a whole region, which "

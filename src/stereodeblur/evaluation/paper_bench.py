@@ -226,9 +226,10 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 
 def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'``,
-    ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on, so results
-    from before those options stay valid; the version of the alpha rules that predict the
-    other view; the version of the true motion's fit)."""
+    ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
+    ``boundary_flow`` only when off, so results from before those options stay valid; the
+    version of the alpha rules that predict the other view; the version of the true motion's
+    fit)."""
     from ..pipeline.alpha import rules_version
     from ..sceneflow.from_gt import FIT_VERSION
     from ..settings import range_guard_signature
@@ -239,6 +240,7 @@ def _signature(column: Column, settings) -> dict:
         ("observations", "single"),
         ("interpolation", "bilinear"),
         ("range_guard", False),
+        ("boundary_flow", True),
     ):
         if fields[name] == old:
             del fields[name]

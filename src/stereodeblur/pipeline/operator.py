@@ -9,7 +9,7 @@ import numpy as np
 
 from ..geometry.camera import Exposure
 from .motion import FrameMotion
-from .window import uses_boundary_flow
+from .window import occlusion_aware, uses_boundary_flow
 
 if TYPE_CHECKING:
     from ..blur.operator import SparseBlur
@@ -135,7 +135,7 @@ def visibility(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings
     the estimated scene flow, whose boundaries lie somewhere in the blurred edges, the
     dense flow's rows are used there instead (README, "Where the defaults come from").
     """
-    if not uses_boundary_flow(settings) or flow_rows is not None:
+    if not occlusion_aware(settings) or flow_rows is not None:
         return None
     from ..blur.visibility import sceneflow_visibility
 

@@ -56,9 +56,15 @@ TRUST_HANDLINGS = ("adaptive", "gated")
 """Boundary handlings that measure the motion's trust on the neighbouring frames."""
 
 
+def occlusion_aware(settings: DeblurSettings) -> bool:
+    """Whether ``settings``' homography kernels let each instant show the surface covering
+    the pixel then (where no dense flow's rows replace them)."""
+    return settings.boundary_weights in TRUST_HANDLINGS and settings.kernels == "homography"
+
+
 def uses_boundary_flow(settings: DeblurSettings) -> bool:
     """Whether ``settings`` take the blur near motion boundaries from the dense flow."""
-    return settings.boundary_weights in TRUST_HANDLINGS and settings.kernels == "homography"
+    return occlusion_aware(settings) and settings.boundary_flow
 
 
 def observation_kinds(settings: DeblurSettings) -> tuple[str, ...]:
