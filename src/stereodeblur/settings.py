@@ -269,10 +269,10 @@ class DeblurSettings:
         ``motion_source='initial-flow'`` or a given motion of one view every frame has its
         single observation.
     boundary_flow : bool
-        With ``boundary_weights`` ``'gated'`` or ``'adaptive'``, homography kernels and an
-        estimated scene flow: take the blur near motion boundaries from the dense optical flow
-        (default). False: the scene flow's own occlusion-aware rows everywhere, as with the true
-        motion; better where the scene flow's boundaries are exact
+        With ``boundary_weights`` ``'gated'`` or ``'adaptive'``, homography kernels and a
+        scene flow (estimated or given): take the blur near motion boundaries from the dense
+        optical flow (default). False: the scene flow's own occlusion-aware rows everywhere, as
+        with the true motion; better only where the scene flow's boundaries are exact
         (:data:`DEFAULT_BOUNDARY_FLOW`).
     range_guard : bool
         Where the estimate leaves [0, 1] over a whole region (:data:`RANGE_EXCESS`,
