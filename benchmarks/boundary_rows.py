@@ -43,23 +43,16 @@ MOTIONS = ("estimated", "relabelled", "true")
 OPERATORS = {True: "dense-flow rows", False: "occlusion-aware"}
 
 
-def true_sceneflow(scene, estimate):
-    """The scene flow fitted to frame 1's true disparity and flow, as the true-motion
-    columns fit it (:func:`stereodeblur.pipeline.motion.gt_motions`)."""
-    from stereodeblur.sceneflow.from_gt import (
-        default_num_segments,
-        sceneflow_from_gt,
-        split_at_discontinuities,
-    )
-    from stereodeblur.sceneflow.superpixels import slic_segments
+def true_sceneflow(scene):
+    """The scene flow the true-motion columns deblur frame 1 with, fitted to its true
+    disparity and flow (:func:`stereodeblur.pipeline.motion.gt_motions`)."""
+    from stereodeblur.pipeline import DeblurSettings
+    from stereodeblur.pipeline.motion import gt_motions
+    from stereodeblur.pipeline.window import read_window
 
-    blurred = scene.read_frame("left", 1)
-    disparity, flow = scene.read_gt_disparity("left", 1), scene.read_gt_flow("left", 1)
-    segments = slic_segments(blurred, default_num_segments(blurred.shape[:2]))
-    labels = split_at_discontinuities(segments, disparity, flow)
-    return sceneflow_from_gt(
-        estimate.camera, disparity, scene.read_gt_disparity("left", 2), flow, labels
-    )
+    settings = DeblurSettings(motion_source="gt")
+    window = read_window(scene, 1, ("left",), settings)
+    return gt_motions(scene, window, ("left",), settings)["left"].sceneflow
 
 
 def relabelled(sceneflow, disparity: np.ndarray, flow: np.ndarray):
@@ -106,7 +99,7 @@ def evaluate(work: Path, name: str) -> dict:
     border = border_for(sharp.shape[1])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        truth = true_sceneflow(scene, estimate)
+        truth = true_sceneflow(scene)
         disparity, flow = scene.read_gt_disparity("left", 1), scene.read_gt_flow("left", 1)
         motions = {
             "estimated": estimate,
@@ -129,6 +122,8 @@ def evaluate(work: Path, name: str) -> dict:
 
 def report(rows, *, command: str, minutes: float) -> str:
     """The Markdown tables of ``rows``."""
+    from stereodeblur.evaluation.paper_bench import scene_groups
+
     keys = [(m, d) for m in MOTIONS for d in OPERATORS]
     head = " | ".join(f"{m}, {OPERATORS[d]}" for m, d in keys)
     lines = [
@@ -141,15 +136,16 @@ def report(rows, *, command: str, minutes: float) -> str:
         f"each pixel given the segment within {RADIUS} px nearest the true disparity and "
         "flow).",
     ]
+    groups = scene_groups([r["scene"] for r in rows])
+    by_name = {r["scene"]: r for r in rows}
     for metric, title in ((0, "PSNR (dB)"), (1, "gt/mixed MSE x 1000")):
         lines += ["", f"## {title}", "", f"| scene | {head} |", "|---" * (len(keys) + 1) + "|"]
-        for noisy in (False, True):
-            group = [r for r in rows if r["scene"].endswith("_noisy") == noisy]
+        for label, names in groups:
+            group = [by_name[n] for n in names]
             for r in group:
                 cells = " | ".join(f"{r[k][metric]:.2f}" for k in keys)
                 lines.append(f"| {r['scene']} | {cells} |")
             means = " | ".join(f"**{np.mean([r[k][metric] for r in group]):.2f}**" for k in keys)
-            label = "noisy" if noisy else "noiseless"
             lines.append(f"| mean, {label} | {means} |")
     return "\n".join(lines) + "\n"
 

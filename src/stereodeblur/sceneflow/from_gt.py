@@ -186,10 +186,10 @@ def sceneflow_from_gt(
     order = np.argsort(labels.ravel(), kind="stable")
     bounds = np.searchsorted(labels.ravel()[order], np.arange(num + 1))
     P = camera.backproject(x, y, camera.disparity_to_depth(np.where(valid0, d0, 1.0)))
-    xs, ys, ds = x.ravel()[order], y.ravel()[order], d0.ravel()[order]
     Q = camera.backproject(x1, y1, camera.disparity_to_depth(np.where(valid, d1, 1.0)))
-    Ps, targets = P.reshape(-1, 3)[order], np.column_stack([x1.ravel(), y1.ravel()])[order]
-    Qs = Q.reshape(-1, 3)[order]
+    xs, ys, ds = x.ravel()[order], y.ravel()[order], d0.ravel()[order]
+    Ps, Qs = P.reshape(-1, 3)[order], Q.reshape(-1, 3)[order]
+    targets = np.column_stack([x1.ravel(), y1.ravel()])[order]
     v0s, ps, vs = valid0.ravel()[order], projected.ravel()[order], valid.ravel()[order]
     for k in range(num):
         s = slice(bounds[k], bounds[k + 1])
