@@ -165,11 +165,10 @@ def test_the_option_accepts_the_rule():
         DeblurSettings(alpha="crossview")
 
 
-@pytest.mark.parametrize("source", ["gt", "sceneflow"])
-def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(
-    scene, source, monkeypatch
-):
+def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(scene, monkeypatch):
     from stereodeblur.pipeline import frame as frame_module
+
+    source = "sceneflow"
 
     errors = []
     real = frame_module.prediction_error
@@ -217,7 +216,7 @@ def test_held_out_chooses_from_the_own_frame_then_adds_the_observations(scene, m
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
-    observed = {**FAST, "motion_source": "gt", "observations": "other-view"}
+    observed = {**FAST, "motion_source": "sceneflow", "observations": "other-view"}
     auto = deblur_stereo_frame(scene, 1, settings=DeblurSettings(**observed, alpha="auto"))
     grid = (auto.frames["left"].alpha * 4,)  # one candidate above 'auto'
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
@@ -240,7 +239,9 @@ def test_held_out_chooses_from_the_own_frame_then_adds_the_observations(scene, m
         scene,
         1,
         views=("left",),
-        settings=DeblurSettings(**FAST, motion_source="gt", alpha=grid[0], observations="single"),
+        settings=DeblurSettings(
+            **FAST, motion_source="sceneflow", alpha=grid[0], observations="single"
+        ),
     )
     np.testing.assert_array_equal(solved[1], np.clip(single.frames["left"].image, 0, 1))
 
@@ -261,7 +262,7 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     from stereodeblur.pipeline import frame as frame_module
 
     auto = deblur_stereo_frame(
-        scene, 1, settings=DeblurSettings(**FAST, motion_source="gt", alpha="auto")
+        scene, 1, settings=DeblurSettings(**FAST, motion_source="sceneflow", alpha="auto")
     ).frames["left"]
     grid = tuple(auto.alpha * k for k in (2, 4, 8, 16, 32))  # five candidates above 'auto'
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
@@ -273,7 +274,7 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
         return next(errors)
 
     monkeypatch.setattr(frame_module, "prediction_error", scripted)
-    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert len(calls) == 3 and chosen.alpha == grid[0]
 
@@ -282,7 +283,7 @@ def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkey
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
-    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
     auto = deblur_stereo_frame(
         scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
     ).frames["left"]
@@ -312,7 +313,7 @@ def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
-    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
     auto = deblur_stereo_frame(
         scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
     ).frames["left"]
@@ -322,3 +323,35 @@ def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
     monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(upwards))
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert chosen.alpha == auto.alpha
+
+
+def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rule_up(
+    scene, monkeypatch
+):
+    from stereodeblur.deconv.noise import estimate_noise_sigma
+    from stereodeblur.pipeline import frame as frame_module
+
+    errors = []
+    real = frame_module.observed_error
+
+    def recorded(image, observation, *, border):
+        errors.append(real(image, observation, border=border))
+        return errors[-1]
+
+    def unused(*args, **kwargs):
+        raise AssertionError("the true motion's choice predicts through the observation")
+
+    monkeypatch.setattr(frame_module, "observed_error", recorded)
+    monkeypatch.setattr(frame_module, "prediction_error", unused)
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    auto = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha="auto")).frames["left"]
+    noise = alpha_from_sigma(estimate_noise_sigma(chosen.blurred))
+    assert noise < auto.alpha  # the trust raised 'auto'; the true motion's choice starts below
+    candidates = [noise, *(a for a in CROSS_VIEW_ALPHAS if a > noise)]
+    assert 2 <= len(errors) <= len(candidates)
+    assert all(b < a for a, b in zip(errors[:-2], errors[1:-1], strict=True))
+    assert len(errors) == len(candidates) or errors[-1] >= errors[-2]
+    assert chosen.alpha == candidates[int(np.argmin(errors))]
+    fixed = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha=chosen.alpha))
+    np.testing.assert_array_equal(chosen.image, fixed.frames["left"].image)

@@ -24,6 +24,10 @@ trimmed mean of squared errors lies below the noise it is compared with). Only i
 is within :data:`~stereodeblur.settings.HELD_OUT_NOISE_RATIO` of the two views' noise (the
 motion explains the other view) does it go below the floor, down to the noise rule's alpha,
 while the same error falls (:func:`below_floor`).
+
+With the true motion (``motion_source='gt'``) there is no motion error for the trust to
+guard against: the floor is the noise rule's alpha, and every candidate is scored by that
+untrimmed prediction through the other view's observation (:func:`true_motion_choice`).
 """
 
 from __future__ import annotations
@@ -52,13 +56,24 @@ RULES_VERSION = 6
 cached benchmark results: 6 since stop 31 (every candidate range-guarded before it is
 scored), 5 since stop 29 (the noise gate below the floor), 1 before (2 to 4 were candidates
 of stops 28 and 29, not adopted)."""
+TRUE_MOTION_RULES_VERSION = 7
+"""The same with the true motion: 7 since stop 33 (:func:`true_motion_choice`)."""
 
 
 def rules_version(settings) -> int | None:
-    """:data:`RULES_VERSION` if ``settings``' alpha is chosen by predicting the other view,
-    else None (a fixed alpha, ``'auto'``, or no scene flow: then the rules are ``'auto'``)."""
+    """:data:`RULES_VERSION` (:data:`TRUE_MOTION_RULES_VERSION` with the true motion) if
+    ``settings``' alpha is chosen by predicting the other view, else None (a fixed alpha,
+    ``'auto'``, or no scene flow: then the rules are ``'auto'``)."""
     predicts = settings.alpha in ("held-out", "cross-view")
-    return RULES_VERSION if predicts and settings.motion_source != "initial-flow" else None
+    if not predicts or settings.motion_source == "initial-flow":
+        return None
+    return TRUE_MOTION_RULES_VERSION if true_motion_choice(settings) else RULES_VERSION
+
+
+def true_motion_choice(settings) -> bool:
+    """Whether ``'held-out'`` starts at the noise rule's alpha and scores by the other view's
+    observation: with the true motion (``benchmarks/results/held_out_train_320x240.md``)."""
+    return settings.alpha == "held-out" and settings.motion_source == "gt"
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from ..deconv.irls import DeblurResult, deblur_irls
+from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
@@ -28,6 +29,7 @@ from .alpha import (
     other_view,
     prediction_error,
     searched,
+    true_motion_choice,
 )
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import (
@@ -304,7 +306,9 @@ def _alpha_choice_solve(
     """Solve at the candidate alphas of ``settings.alpha`` from the view's own blurred frame
     and keep the one chosen by predicting ``other`` (:func:`.alpha.candidates`,
     :func:`.alpha.searched`, :func:`.alpha.choose`; below the floor only through the noise
-    gate, :func:`.alpha.below_floor`); with ``observations``, solve once more
+    gate, :func:`.alpha.below_floor`; with the true motion from the noise rule's alpha up,
+    scored by the other view's observation, :func:`.alpha.true_motion_choice`); with
+    ``observations``, solve once more
     with them at that alpha (the other view is then held out of the choice even where it is
     observed). Every solution is range-guarded (:func:`_guarded_solve`) before it is scored,
     so that the choice judges what the view's result would be. ``base``: the data terms at
@@ -322,10 +326,18 @@ def _alpha_choice_solve(
         result, unexplained = _guarded_solve(blurred, operator, terms, fixed, weights, (), progress)
         return _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
 
+    observed = true_motion_choice(settings) and other.observation is not None
+    floor = alpha_from_sigma(base.noise_sigma) if observed else base.alpha
+
+    def score(image) -> float:
+        if observed:
+            return observed_error(image, other.observation, border=border)
+        return prediction_error(image, other, border=border)
+
     runs, errors = [], []
-    for alpha in candidates(rule, base.alpha):
+    for alpha in candidates(rule, floor):
         runs.append(run(alpha))
-        errors.append(prediction_error(runs[-1].image, other, border=border))
+        errors.append(score(runs[-1].image))
         if searched(rule, errors):
             break
     best = choose(errors, rule)
