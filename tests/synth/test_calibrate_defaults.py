@@ -114,3 +114,19 @@ def test_monocular_check_needs_every_semi_real_scene(runner):
     ((_, ok, figures),) = runner.monocular_checks(rows, ["default"])
     assert not ok and "worst +0.20 dB (street_1)" in figures
     assert runner.monocular_checks(rows[1:2], ["default"]) == []
+
+
+def test_the_monocular_bound_takes_each_street_scenes_best_grid_alpha(runner):
+    def row(name, kind, grid, mono):
+        columns = {f"gt/alpha={a:g}": {"psnr": p} for a, p in grid.items()}
+        columns["initial-flow/monocular"] = {"psnr": mono}
+        return {"scene": name, "kind": kind, "columns": columns}
+
+    rows = [
+        row("street_0", "street", {1e-4: 31.0, 1e-3: 32.0}, 30.0),  # best +2.00
+        row("street_1", "street", {1e-4: 30.3, 1e-3: 29.0}, 30.0),  # best +0.30
+        row("family_0", "family", {1e-4: 10.0}, 30.0),  # not a street: ignored
+    ]
+    (line,) = runner.monocular_bounds(rows, ["gt"])
+    assert "mean +1.15 dB" in line and "on 1 of 2" in line
+    assert runner.monocular_bounds(rows, ["sceneflow"]) == []  # no grid column of it
