@@ -133,18 +133,21 @@ def snap(alpha: float) -> int:
     return int(np.argmin([abs(np.log(alpha / a)) for a in GRID]))
 
 
-def choice(entry: dict, key: str, ratio: float | None, gate: str | None = None) -> int:
+def choice(
+    entry: dict, key: str, ratio: float | None, gate: str | None = None, start: str = "floor"
+) -> int:
     """The grid index chosen with the errors ``entry[key]``: upwards from the snapped floor
-    while the error falls (``held-out``); then, with a noise gate of ``ratio``, downwards to the
-    noise rule's alpha while the error ``entry[gate]`` (default: the same) falls if the floor
-    predicts best and its ``gate`` error is within ``ratio * 2 sigma^2``."""
+    (``start='noise'``: from the noise rule's alpha, as ``held-out`` does with the true motion
+    since stop 33) while the error falls (``held-out``); then, with a noise gate of ``ratio``,
+    downwards to the noise rule's alpha while the error ``entry[gate]`` (default: the same)
+    falls if the floor predicts best and its ``gate`` error is within ``ratio * 2 sigma^2``."""
     from stereodeblur.deconv.noise import alpha_from_sigma
 
-    errors, floor = entry[key], snap(entry["floor"])
+    errors, noise = entry[key], snap(alpha_from_sigma(entry["sigma"]))
+    floor = noise if start == "noise" else snap(entry["floor"])
     best = floor
     while best + 1 < len(GRID) and errors[best + 1] < errors[best]:
         best += 1
-    noise = snap(alpha_from_sigma(entry["sigma"]))
     below = entry[gate or key]
     gated = ratio is not None and best == floor and below[best] < ratio * 2 * entry["sigma"] ** 2
     while gated and best > noise and below[best - 1] < below[best]:
@@ -171,6 +174,13 @@ RULES = (
     *(
         (f"`held-out` upwards, the gate {r:g} on the weight >= 0.5 error", "held_out", r, "full")
         for r in (4.0, 8.0, 16.0)
+    ),
+    (
+        "from the noise rule's alpha up, the weight >= 0.5 error (stop 33: the true motion's)",
+        "full",
+        None,
+        None,
+        "noise",
     ),
 )
 """Rows of the report: label, errors, gate ratio (and the gate's errors, if others)."""

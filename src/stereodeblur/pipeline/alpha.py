@@ -72,7 +72,7 @@ def rules_version(settings) -> int | None:
 
 def true_motion_choice(settings) -> bool:
     """Whether ``'held-out'`` starts at the noise rule's alpha and scores by the other view's
-    observation: with the true motion (``benchmarks/results/held_out_train_320x240.md``)."""
+    observation: with the true motion (``benchmarks/results/held_out_train_320x240_stop33.md``)."""
     return settings.alpha == "held-out" and settings.motion_source == "gt"
 
 
