@@ -168,8 +168,7 @@ def test_the_option_accepts_the_rule():
 def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(scene, monkeypatch):
     from stereodeblur.pipeline import frame as frame_module
 
-    source = "sceneflow"
-
+    source = "sceneflow"  # the true motion's choice: the last test of this file
     errors = []
     real = frame_module.prediction_error
 
