@@ -103,7 +103,8 @@ def _options() -> tuple[SettingOption, ...]:
             "--alpha",
             "prior weight in (0, 1]; 'held-out' (default): from 'auto' up the grid alphas "
             "while the solution predicts the other view better, below it only where that "
-            "prediction is within the noise (2-6 solves per view); 'auto': "
+            "prediction is within the noise (with --motion-source gt: from the noise level "
+            "up; 2-6 solves per view); 'auto': "
             "from the input's noise level; 'cross-view': the grid alpha that best predicts the "
             "other view, one step up (6 solves per view; paper: 0.001)",
             type=alpha,
