@@ -455,10 +455,15 @@ def checks(rows, motions, key: str = "default") -> list[tuple[str, bool, str]]:
     return out
 
 
+def _streets(rows) -> list[dict]:
+    """The semi-real (street) rows that have the monocular column."""
+    return [r for r in rows if r["kind"] == "street" and "initial-flow/monocular" in r["columns"]]
+
+
 def monocular_checks(rows, keys) -> list[tuple[str, bool, str]]:
     """Issue 13's semi-real check of each column of ``keys`` (estimated motion): at least
     :data:`OVER_MONOCULAR` dB over the monocular path on average and on every street scene."""
-    street = [r for r in rows if r["kind"] == "street" and "initial-flow/monocular" in r["columns"]]
+    street = _streets(rows)
     if not street:
         return []
     out = []
@@ -482,7 +487,7 @@ def monocular_checks(rows, keys) -> list[tuple[str, bool, str]]:
 def monocular_bounds(rows, motions) -> list[str]:
     """What issue 13's semi-real check could reach at most with each motion source of
     ``motions``: its best grid alpha per street scene (an oracle) over the monocular path."""
-    street = [r for r in rows if r["kind"] == "street" and "initial-flow/monocular" in r["columns"]]
+    street = _streets(rows)
     out = []
     for source in motions:
         gains = []
