@@ -11,9 +11,11 @@ Run from the repository root, after ``stereodeblur bench paper --size 640x480 --
 boundaries: with the estimated scene flow the default takes the dense optical flow's rows
 there (``boundary_flow``), with the true motion there is no dense flow and the operator
 is occlusion-aware. This script deblurs frame 1 (left view, every other setting the
-default's) with three motions, each under both operators:
+default's) with four motions, each under both operators:
 
-- ``estimated``: the scene-flow estimate ``bench paper`` cached;
+- ``estimated``: the scene-flow estimate ``bench paper`` cached, its boundaries as estimated;
+- ``moved``: the same with its boundaries moved to the dense flow's (``relabel_radius``, the
+  default since stop 34);
 - ``relabelled``: the estimate's planes and motions, each pixel given the segment within
   6 px whose plane and motion come nearest the true disparity and flow (an oracle: how far
   better boundaries alone would go);
@@ -27,6 +29,7 @@ Output: PSNR and the error in the pixels whose exposure mixes surfaces (gt/mixed
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -39,7 +42,7 @@ import numpy as np
 RADIUS = 6
 """Pixels within which ``relabelled`` looks for a better segment."""
 
-MOTIONS = ("estimated", "relabelled", "true")
+MOTIONS = ("estimated", "moved", "relabelled", "true")
 OPERATORS = {True: "dense-flow rows", False: "occlusion-aware"}
 
 
@@ -85,8 +88,8 @@ def relabelled(sceneflow, disparity: np.ndarray, flow: np.ndarray):
     )  # fmt: skip
 
 
-def evaluate(work: Path, name: str) -> dict:
-    """PSNR and gt/mixed MSE of every motion and operator on scene ``name``."""
+def evaluate(work: Path, name: str, chosen=MOTIONS) -> dict:
+    """PSNR and gt/mixed MSE of the ``chosen`` motions under both operators on scene ``name``."""
     from stereodeblur.evaluation.metrics import border_for, masked_mse, psnr
     from stereodeblur.io.scene import open_scene
     from stereodeblur.pipeline import DeblurSettings, deblur_stereo_frame
@@ -103,13 +106,16 @@ def evaluate(work: Path, name: str) -> dict:
         disparity, flow = scene.read_gt_disparity("left", 1), scene.read_gt_flow("left", 1)
         motions = {
             "estimated": estimate,
+            "moved": estimate,
             "relabelled": relabelled(estimate, disparity, flow),
             "true": truth,
         }
         row = {"scene": name}
-        for motion, sceneflow in motions.items():
+        for motion in chosen:
+            sceneflow = motions[motion]
+            radius = DeblurSettings().relabel_radius if motion == "moved" else 0
             for dense in OPERATORS:
-                settings = replace(DeblurSettings(), boundary_flow=dense)
+                settings = replace(DeblurSettings(), boundary_flow=dense, relabel_radius=radius)
                 result = deblur_stereo_frame(
                     scene, 1, views=("left",), settings=settings, sceneflow=sceneflow
                 ).frames["left"]
@@ -120,11 +126,11 @@ def evaluate(work: Path, name: str) -> dict:
     return row
 
 
-def report(rows, *, command: str, minutes: float) -> str:
-    """The Markdown tables of ``rows``."""
+def report(rows, *, command: str, minutes: float, chosen=MOTIONS) -> str:
+    """The Markdown tables of ``rows`` (of the ``chosen`` motions)."""
     from stereodeblur.evaluation.paper_bench import scene_groups
 
-    keys = [(m, d) for m in MOTIONS for d in OPERATORS]
+    keys = [(m, d) for m in chosen for d in OPERATORS]
     head = " | ".join(f"{m}, {OPERATORS[d]}" for m, d in keys)
     lines = [
         "# Motion and boundary rows: the true motion's lead, taken apart",
@@ -132,7 +138,9 @@ def report(rows, *, command: str, minutes: float) -> str:
         f"Command: `{command}`; {minutes:.1f} min (2 cores). Frame 1, left view, "
         "`bench paper`'s object scenes at 640x480; every setting the default's but the motion "
         "and `boundary_flow` (dense-flow rows: the default; occlusion-aware: "
-        "`--no-boundary-flow`). `relabelled` is an oracle (the estimate's planes and motions, "
+        "`--no-boundary-flow`). `moved`: the estimate with its boundaries moved to the dense "
+        "flow's (the default `--relabel-radius`; every other motion with `--relabel-radius 0`). "
+        "`relabelled` is an oracle (the estimate's planes and motions, "
         f"each pixel given the segment within {RADIUS} px nearest the true disparity and "
         "flow).",
     ]
@@ -155,7 +163,17 @@ def main(argv=None) -> int:
     parser.add_argument("--work", type=Path, required=True, help="bench paper's size folder")
     parser.add_argument("--jobs", type=int, default=1, help="scenes at once (default: 1)")
     parser.add_argument("--output", type=Path, help="also write the report here")
+    parser.add_argument(
+        "--motions", default=",".join(MOTIONS), help="comma-separated (default: all of them)"
+    )
     args = parser.parse_args(argv)
+    chosen = tuple(m for m in MOTIONS if m in args.motions.split(","))
+    if not chosen or set(args.motions.split(",")) - set(MOTIONS):
+        print(
+            f"error: --motions {args.motions}: expected some of {','.join(MOTIONS)}",
+            file=sys.stderr,
+        )
+        return 2
     from stereodeblur.evaluation.paper_bench import default_scenes, scene_kind
     from stereodeblur.io.outputs import atomic_write_text
 
@@ -169,10 +187,14 @@ def main(argv=None) -> int:
         )
         return 2
     start = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        rows = list(pool.map(evaluate, [args.work] * len(names), names))
+    from stereodeblur.clip.worker import watch_parent
+
+    workers = max(1, args.jobs)  # they end with this process (a killed run leaves none)
+    with ProcessPoolExecutor(workers, initializer=watch_parent, initargs=(os.getpid(),)) as pool:
+        rows = list(pool.map(evaluate, [args.work] * len(names), names, [chosen] * len(names)))
     command = "python benchmarks/boundary_rows.py " + " ".join(argv or sys.argv[1:])
-    text = report(rows, command=command, minutes=(time.perf_counter() - start) / 60)
+    minutes = (time.perf_counter() - start) / 60
+    text = report(rows, command=command, minutes=minutes, chosen=chosen)
     print(text, end="")
     if args.output:
         atomic_write_text(args.output, text)

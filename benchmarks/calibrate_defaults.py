@@ -44,6 +44,7 @@ Rendered scenes and per-column results are cached under ``--work``, so a rerun r
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -51,7 +52,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,7 @@ import numpy as np
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
+from stereodeblur.pipeline.window import relabels
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
 
@@ -94,6 +96,8 @@ CANDIDATES = {
     "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG, "alpha": "auto"},
     "cubic": {"interpolation": "cubic"},
     "bilinear": {"interpolation": "bilinear"},
+    "no-relabel": {"relabel_radius": 0},
+    "relabel-occlusion": {"boundary_flow": False},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
@@ -102,8 +106,11 @@ rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-
 default since stop 25) and ``single`` the view's own frame alone (the default until stop 24),
 ``iterations-10x25`` the paper's iteration
 counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` and
-``bilinear`` the kernels' interpolation (bilinear the default until stop 24); all but the
-cross-view ones and the interpolations with the noise rule, as they were measured."""
+``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
+``no-relabel`` the estimate's own segment boundaries (the default until stop 34) and
+``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere;
+all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
+they were measured."""
 
 
 @dataclass(frozen=True)
@@ -138,9 +145,10 @@ def grid_prefix(key: str) -> str:
     return "" if handling is None else f"{handling}-"
 
 
-def columns_for(motions, candidates=tuple(CANDIDATES)) -> list[Column]:
+def columns_for(motions, candidates=tuple(CANDIDATES), grid: bool = True) -> list[Column]:
     """Every column for the motion sources ``motions`` and the keys ``candidates`` of
-    :data:`CANDIDATES`; the monocular one with ``sceneflow``."""
+    :data:`CANDIDATES` (and the alpha grid unless not ``grid``); the monocular one with
+    ``sceneflow``."""
     chosen = {key: CANDIDATES[key] for key in candidates}
     handlings = dict.fromkeys(grid_prefix(key) for key in chosen if grid_prefix(key))
     out = []
@@ -148,6 +156,8 @@ def columns_for(motions, candidates=tuple(CANDIDATES)) -> list[Column]:
         out.append(Column("default", source))
         out.append(Column("paper", source, dict(PAPER)))
         out += [Column(key, source, dict(overrides)) for key, overrides in chosen.items()]
+        if not grid:
+            continue
         out += [Column(alpha_key(a), source, {"alpha": a}) for a in ALPHAS]
         for prefix in handlings:
             overrides = {"boundary_weights": prefix[:-1]}
@@ -193,12 +203,15 @@ def _log(message: str) -> None:
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    ``boundary_flow`` only when off, so results from before those options stay valid), for
+    ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
+    before those options stay valid), for
     the rules that predict the other view their version (unless not ``rules``: what does not
     depend on the alpha) and for the true motion the version of its fit."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
+    if not relabels(settings):
+        text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     version = rules_version(settings) if rules else None
     stored = MOTION_STORED if settings.motion_source == "sceneflow" else ""
     fit = f" true motion fit {FIT_VERSION}" if settings.motion_source == "gt" else ""
@@ -215,6 +228,39 @@ def _cached(path: Path, signature: str) -> dict | None:
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) and data.get("signature") == signature else None
+
+
+def _archived(cache: Path, source: str, signature: str) -> Path:
+    """Where a result made with ``signature`` is kept once its column's settings changed."""
+    digest = hashlib.sha1(signature.encode("utf-8")).hexdigest()[:12]
+    return cache / "archive" / f"{source}_{digest}.json"
+
+
+def _archive(path: Path) -> None:
+    """Keep the result at ``path`` under :func:`_archived` before it is replaced: a column
+    whose settings a default takes over (e.g. the default until then as a candidate) finds it
+    there."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        signature = data["signature"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    source = path.stem.split("_", 1)[0]
+    target = _archived(path.parent, source, signature)
+    target.parent.mkdir(exist_ok=True)
+    atomic_write_text(target, json.dumps(data, indent=1))
+
+
+def _cached_elsewhere(cache: Path, source: str, signature: str) -> dict | None:
+    """A result made with ``signature`` under another column's name or archived."""
+    data = _cached(_archived(cache, source, signature), signature)
+    if data is not None:
+        return data
+    for path in sorted(cache.glob(f"{source}_*.json")):
+        data = _cached(path, signature)
+        if data is not None:
+            return data
+    return None
 
 
 def run_column(scene, column: Column, motion, truth) -> dict:
@@ -305,12 +351,12 @@ def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
 def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path):
     """Frame 1's motion for ``column``: its source's with the default settings but the
     column's superpixels and scene-flow settings, computed once per scene and estimator into
-    ``motions`` (the default estimator's time into ``seconds``). The default estimator's
+    ``motions`` (the default estimator's time into ``seconds``), its boundaries as estimated
+    (the deblurring moves them, ``relabel_radius``). The default estimator's
     scene flow and initial flow are stored in ``cache`` and read back on later runs
     (:func:`~stereodeblur.evaluation.motion_cache.cached_motion`): the scene flow of these
     scenes differed by up to 0.44 dB in the results between sessions with the same code."""
     import warnings
-    from dataclasses import replace
 
     from stereodeblur.evaluation.motion_cache import cached_motion
     from stereodeblur.pipeline import frame_motion
@@ -320,8 +366,10 @@ def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path)
     key = (source, own.num_segments, own.sceneflow)
     if key not in motions:
         default = Column("default", source).settings()
-        settings = replace(default, num_segments=own.num_segments, sceneflow=own.sceneflow)
-        if settings == default:
+        settings = replace(
+            default, num_segments=own.num_segments, sceneflow=own.sceneflow, relabel_radius=0
+        )
+        if settings == replace(default, relabel_radius=0):
             motions[key], spent, _ = cached_motion(scene, source, settings, cache)
             seconds.setdefault(source, spent)
         else:
@@ -340,10 +388,11 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
     and cached."""
     signature = _signature(column.settings())
     path = cache / f"{column.motion_source}_{column.key}.json"
-    data = _cached(path, signature)
+    data = _cached(path, signature) or _cached_elsewhere(cache, column.motion_source, signature)
     if data is None:
         motion = motion_for(scene, column, motions, seconds, cache)
         data = run_column(scene, column, motion, truth) | {"signature": signature}
+        _archive(path)
         atomic_write_text(path, json.dumps(data, indent=1))
         name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
         _log(f"{name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
@@ -355,7 +404,7 @@ def run_scene(task) -> dict:
     from stereodeblur.evaluation.metrics import psnr, ssim
     from stereodeblur.io.scene import open_scene
 
-    kind, seed, size, work, motions, candidates = task
+    kind, seed, size, work, motions, candidates, grid = task
     work = Path(work)
     start = time.perf_counter()
     root = ensure_scene(kind, seed, size, work)
@@ -368,7 +417,7 @@ def run_scene(task) -> dict:
     cache = work / "results" / root.name
     cache.mkdir(parents=True, exist_ok=True)
     results, motion_seconds, motion_cache = {}, {}, {}
-    for column in columns_for(motions, candidates):
+    for column in columns_for(motions, candidates, grid):
         data = cached_column(scene, column, truth, cache, motion_cache, motion_seconds)
         results[f"{column.motion_source}/{column.key}"] = {
             k: data[k] for k in ("psnr", "ssim", "alpha", "seconds")
@@ -376,7 +425,9 @@ def run_scene(task) -> dict:
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"
-        signature = _signature(Column("default", source).settings(), rules=False)
+        # Measured on the motion as estimated (motion_for): the relabelling does not enter.
+        unmoved = replace(Column("default", source).settings(), relabel_radius=0)
+        signature = _signature(unmoved, rules=False)
         signature += FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:
@@ -573,11 +624,35 @@ def code_version() -> str:
     return commit + (" with uncommitted changes under src/" if dirty.strip() else "")
 
 
+def candidate_table(rows, motions, candidates) -> list[str]:
+    """Per motion source and candidate: its mean PSNR and the default's difference to it
+    (mean, worst scene, scenes where the default is lower)."""
+    lines = [
+        "| motion | column | mean PSNR | default - column: mean | worst | default lower on |",
+        "|---|---|---|---|---|---|",
+    ]
+    for source in motions:
+        default = [r["columns"][f"{source}/default"]["psnr"] for r in rows]
+        lines.append(f"| {source} | default | {sum(default) / len(default):.2f} | | | |")
+        for key in candidates:
+            values = [r["columns"][f"{source}/{key}"]["psnr"] for r in rows]
+            diff = [d - v for d, v in zip(default, values, strict=True)]
+            worst = min(range(len(diff)), key=diff.__getitem__)
+            lines.append(
+                f"| {source} | {key} | {sum(values) / len(values):.2f} | "
+                f"{sum(diff) / len(diff):+.2f} | {diff[worst]:+.2f} ({rows[worst]['scene']}) | "
+                f"{sum(d < 0 for d in diff)} of {len(diff)} |"
+            )
+    return lines
+
+
 def report(rows, args, seconds: float) -> str:
     motions = args.motions
-    passed = checks(rows, motions)
-    for key in args.candidates:
-        passed += checks(rows, motions, key)
+    passed = []
+    if args.grid:
+        passed = checks(rows, motions)
+        for key in args.candidates:
+            passed += checks(rows, motions, key)
     lines = [
         f"# Calibration protocol: {args.split} split, {args.size}, {len(rows)} scenes",
         "",
@@ -591,9 +666,12 @@ def report(rows, args, seconds: float) -> str:
             else "Train split: the scenes the defaults may be tuned on."
         ),
         "",
-        "## Checks (issue 12)",
-        "",
     ]
+    if args.grid:
+        lines += ["## Checks (issue 12)", ""]
+    else:
+        lines += ["## The default against the candidates (no alpha grid: no issue 12 checks)", ""]
+        lines += candidate_table(rows, motions, args.candidates)
     lines += [f"- {'PASS' if ok else 'FAIL'}: {name} ({figures})" for name, ok, figures in passed]
     if "sceneflow" in motions:
         semi_real = monocular_checks(rows, ["default", *args.candidates])
@@ -601,7 +679,8 @@ def report(rows, args, seconds: float) -> str:
             lines += ["", "## Checks (issue 13): semi-real scenes against the monocular path", ""]
             lines += [f"- {'PASS' if ok else 'FAIL'}: {n} ({f})" for n, ok, f in semi_real]
             lines += monocular_bounds(rows, motions)
-    lines += ["", "## Summary (PSNR, dB)", ""] + summary_table(rows, motions)
+    if args.grid:
+        lines += ["", "## Summary (PSNR, dB)", ""] + summary_table(rows, motions)
     lines += ["", "## Per scene (PSNR dB / SSIM)", ""]
     for row in rows:
         lines += scene_table(row, motions)
@@ -626,6 +705,13 @@ def parse(argv=None):
         help="keys of CANDIDATES to run, comma-separated, or 'none' (default: all)",
     )
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument(
+        "--no-grid",
+        dest="grid",
+        action="store_false",
+        help="without the alpha grid (and the checks against it): the default against the "
+        "candidates only",
+    )
     parser.add_argument("--output", default=None, help="markdown output (and .json beside)")
     args = parser.parse_args(argv)
     try:
@@ -651,14 +737,19 @@ def parse(argv=None):
 
 
 def run_all(function, tasks, jobs: int) -> list:
-    """``function(task)`` for every task: here, or in ``jobs`` spawned single-threaded processes."""
+    """``function(task)`` for every task: here, or in ``jobs`` spawned single-threaded processes
+    that end with this one (a killed run leaves none behind)."""
     if jobs == 1:
         return [function(t) for t in tasks]
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
     import multiprocessing
 
+    from stereodeblur.clip.worker import watch_parent
+
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(jobs, mp_context=context) as pool:
+    with ProcessPoolExecutor(
+        jobs, mp_context=context, initializer=watch_parent, initargs=(os.getpid(),)
+    ) as pool:
         return list(pool.map(function, tasks))
 
 
@@ -666,7 +757,7 @@ def main(argv=None) -> int:
     args = parse(argv)
     work = Path(args.work) / args.size
     tasks = [
-        (kind, seed, args.size_pair, str(work), args.motions, args.candidates)
+        (kind, seed, args.size_pair, str(work), args.motions, args.candidates, args.grid)
         for kind, seed in scene_list(args.split, args.scenes, args.kinds)
     ]
     start = time.perf_counter()

@@ -16,8 +16,10 @@ from stereodeblur.pipeline import (
     boundary_motion,
     build_operator,
     deblur_frame,
+    deblur_stereo_frame,
     frame_motion,
 )
+from stereodeblur.sceneflow.relabel import relabel_by_flow
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
@@ -181,12 +183,36 @@ def test_the_operator_is_occlusion_aware_only_without_dense_flow_rows(scene, mon
     hidden = hidden_fraction(visible) > 0
     assert hidden.any()
     assert np.all(result.result.weights[hidden] < 1)
-    # --no-boundary-flow: no dense flow, the estimated scene flow's occlusion-aware rows
+    # --no-boundary-flow: the estimated scene flow's occlusion-aware rows everywhere
     own = deblur_frame(scene, 1, settings=replace(estimated, boundary_flow=False))
-    assert own.motion.boundary_flow is None
+    assert own.motion.boundary_flow is not None  # computed to move the boundaries
     np.testing.assert_array_equal(
         visibilities[3],
         sceneflow_visibility(own.motion.sceneflow, scene.info.exposure, 8),
+    )
+    unmoved = replace(estimated, boundary_flow=False, relabel_radius=0)
+    assert deblur_frame(scene, 1, settings=unmoved).motion.boundary_flow is None
+
+
+def test_the_scene_flows_boundaries_move_to_the_dense_flows(scene):
+    estimated = DeblurSettings(**{**FAST, "motion_source": "sceneflow"})
+    unmoved = frame_motion(scene, 1, "left", replace(estimated, relabel_radius=0))
+    moved = frame_motion(scene, 1, "left", estimated)
+    expected = relabel_by_flow(
+        unmoved.sceneflow, *unmoved.boundary_flow, radius=estimated.relabel_radius
+    )
+    assert not np.array_equal(expected.labels, unmoved.sceneflow.labels)
+    np.testing.assert_array_equal(moved.sceneflow.labels, expected.labels)
+    np.testing.assert_array_equal(moved.flow_forward, expected.flow())
+    np.testing.assert_array_equal(moved.flow_backward, expected.reversed().flow())
+    # A given scene flow is moved the same way; the paper's weights do not move it.
+    given = deblur_stereo_frame(
+        scene, 1, views=("left",), settings=estimated, sceneflow=unmoved.sceneflow
+    )
+    np.testing.assert_array_equal(given.motion.views["left"].sceneflow.labels, expected.labels)
+    paper = replace(estimated, boundary_weights="paper")
+    np.testing.assert_array_equal(
+        frame_motion(scene, 1, "left", paper).sceneflow.labels, unmoved.sceneflow.labels
     )
 
 
@@ -213,6 +239,8 @@ def test_trust_uses_both_neighbouring_frames(scene):
         ("boundary_weights", "always", "boundary weights"),
         ("boundary_mask", "estimated", "boundary mask"),
         ("boundary_flow", "yes", "boundary_flow"),
+        ("relabel_radius", -1, "relabel_radius"),
+        ("relabel_radius", 2.5, "relabel_radius"),
     ],
 )
 def test_bad_settings_are_input_errors(field, value, message):

@@ -46,6 +46,8 @@ __all__ = [
     "ITERATIONS_RANGE",
     "SAMPLES_RANGE",
     "SEGMENTS_RANGE",
+    "RELABEL_RANGE",
+    "RELABEL_RADIUS",
     "DeblurSettings",
 ]
 
@@ -138,6 +140,13 @@ MONOCULAR_BOUNDARY_WEIGHTS = "adaptive"
 # occlusion-aware rows (-2.77 dB on spheres_noisy); with the true motion 33.26 / 32.57 against
 # 34.49 / 33.54. Off pays only where the scene flow's boundaries are exact.
 DEFAULT_BOUNDARY_FLOW = True
+# Pixels within this many px of a scene-flow segment boundary take the nearby segment whose
+# flows come nearest the dense flows to both neighbouring frames (DeblurSettings.relabel_radius;
+# README, "Boundaries from the dense flow"; 6 px as the oracle of boundary_rows.py): bench
+# paper's objects 32.65 / 31.82 -> 33.12 / 32.28 dB (noiseless / noisy), the training split
+# 33.34 -> 33.47 dB (worst -1.60, noisy fine stripes), then the test split 31.40 -> 31.44 dB
+# (results/calibrate_defaults_{train,test}_320x240_relabel.md). 0 is the paper's.
+RELABEL_RADIUS = 6
 # The other view's blurred frame as a second data term (alpha chosen from the view's own):
 # train split (40 scenes, 320x240) +0.44 / +0.27 dB over the single observation (true motion /
 # scene flow), worst -0.33 / -0.66 dB (results/observations_train_320x240.md); bench paper's
@@ -182,6 +191,7 @@ SAMPLES_RANGE = (2, 1000)
 # Zero iterations return the input unchanged; the paper uses 10 x 25.
 ITERATIONS_RANGE = (1, 1000)
 SEGMENTS_RANGE = (1, 100_000)
+RELABEL_RANGE = (0, 100)
 # Eq. 6 on images in [0, 1]: at 1 the prior already outweighs the data term.
 ALPHA_MAX = 1.0
 
@@ -276,6 +286,12 @@ class DeblurSettings:
         optical flow (default). False: the scene flow's own occlusion-aware rows everywhere, as
         with the true motion; better only where the scene flow's boundaries are exact
         (:data:`DEFAULT_BOUNDARY_FLOW`).
+    relabel_radius : int
+        With an estimated or given scene flow and ``boundary_weights`` ``'gated'`` or
+        ``'adaptive'``: each pixel within this many px of a segment boundary takes the segment
+        within as many px whose flows come nearest the view's dense optical flows to both
+        neighbouring frames (:func:`~stereodeblur.sceneflow.relabel.relabel_by_flow`;
+        :data:`RELABEL_RADIUS`). 0: the estimate's own segments (the paper's).
     range_guard : bool
         Where the estimate leaves [0, 1] over a whole region (:data:`RANGE_EXCESS`,
         :data:`RANGE_WINDOW`, :data:`RANGE_SHARE`), the motion cannot have made the frame
@@ -301,6 +317,7 @@ class DeblurSettings:
     boundary_mask: str | None = None
     observations: str = DEFAULT_OBSERVATIONS
     boundary_flow: bool = DEFAULT_BOUNDARY_FLOW
+    relabel_radius: int = RELABEL_RADIUS
     range_guard: bool = DEFAULT_RANGE_GUARD
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
@@ -330,6 +347,7 @@ class DeblurSettings:
         _check_count("num_irls", self.num_irls, ITERATIONS_RANGE)
         _check_count("num_cg", self.num_cg, ITERATIONS_RANGE)
         _check_count("num_segments", self.num_segments, SEGMENTS_RANGE, optional=True)
+        _check_count("relabel_radius", self.relabel_radius, RELABEL_RANGE)
         if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
             raise InputError(f"seed must be a whole number, got {self.seed!r}")
         if self.alpha not in ALPHA_RULES:

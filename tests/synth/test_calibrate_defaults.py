@@ -130,3 +130,35 @@ def test_the_monocular_bound_takes_each_street_scenes_best_grid_alpha(runner):
     (line,) = runner.monocular_bounds(rows, ["gt"])
     assert "mean +1.15 dB" in line and "on 1 of 2" in line
     assert runner.monocular_bounds(rows, ["sceneflow"]) == []  # no grid column of it
+
+
+def test_without_the_grid_the_default_is_set_against_the_candidates(runner):
+    keys = [c.key for c in runner.columns_for(("sceneflow",), ("no-relabel",), grid=False)]
+    assert keys == ["default", "paper", "no-relabel", "monocular"]
+    assert runner.columns_for(("sceneflow",), ("no-relabel",))[0].settings().relabel_radius > 0
+    off = runner.columns_for(("sceneflow",), ("no-relabel",))[2].settings()
+    assert off.relabel_radius == 0
+
+    def row(name, default, other):
+        columns = {"sceneflow/default": {"psnr": default}, "sceneflow/no-relabel": {"psnr": other}}
+        return {"scene": name, "kind": "family", "columns": columns}
+
+    rows = [row("a", 31.0, 30.0), row("b", 29.5, 30.0), row("c", 32.0, 31.0)]
+    lines = runner.candidate_table(rows, ("sceneflow",), ("no-relabel",))
+    assert lines[2] == "| sceneflow | default | 30.83 | | | |"
+    assert lines[3] == "| sceneflow | no-relabel | 30.33 | +0.50 | -0.50 (b) | 1 of 3 |"
+    assert not runner.parse(["--no-grid"]).grid and runner.parse([]).grid
+
+
+def test_a_result_is_found_under_another_column_or_archived(runner, tmp_path):
+    import json
+
+    default = tmp_path / "sceneflow_default.json"
+    default.write_text(json.dumps({"psnr": 30.0, "signature": "before"}))
+    runner._archive(default)  # the default's settings change: its result is kept
+    default.write_text(json.dumps({"psnr": 31.0, "signature": "after"}))
+    assert runner._cached_elsewhere(tmp_path, "sceneflow", "before")["psnr"] == 30.0
+    assert runner._cached_elsewhere(tmp_path, "sceneflow", "after")["psnr"] == 31.0
+    assert runner._cached_elsewhere(tmp_path, "sceneflow", "other") is None
+    assert runner._cached_elsewhere(tmp_path, "gt", "before") is None
+    runner._archive(tmp_path / "sceneflow_missing.json")  # nothing to keep

@@ -18,6 +18,8 @@ types before anything is read or allocated:
   for images in [0, 1]; at 1 the prior already outweighs the data term, beyond it the result
   is flat.
 - ``--segments`` in 1..100000 superpixels.
+- ``--relabel-radius`` in 0..100 px: past the size of a superpixel the window holds segments of
+  far-away surfaces.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from dataclasses import dataclass
 
 from ..settings import ALPHA_MAX, ALPHA_RULES
 from ..settings import ITERATIONS_RANGE as ITERATIONS
+from ..settings import RELABEL_RANGE as RELABEL
 from ..settings import SAMPLES_RANGE as SAMPLES
 from ..settings import SEGMENTS_RANGE as SEGMENTS
 from .base import integer
@@ -151,6 +154,15 @@ def _options() -> tuple[SettingOption, ...]:
             "neighbouring frames better (default: on); off: the scene flow's occlusion-aware "
             "blur everywhere, better with an exact scene flow",
             switch=True,
+        ),
+        SettingOption(
+            "relabel_radius",
+            "--relabel-radius",
+            "pixels within N px of a scene-flow segment boundary take the nearby segment whose "
+            f"flows match the dense optical flows best, {RELABEL[0]}..{RELABEL[1]} (default: "
+            "%(default)s; 0: the estimate's own segments, as in the paper)",
+            type=integer(*RELABEL),
+            metavar="N",
         ),
         SettingOption(
             "range_guard",

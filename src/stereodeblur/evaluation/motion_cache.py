@@ -27,7 +27,9 @@ def quiet(function, *args, **kwargs):
 
 
 def cached_motion(scene, source: str, settings, cache: Path):
-    """The :class:`~stereodeblur.pipeline.FrameMotion` of frame 1 (left) from ``source``.
+    """The :class:`~stereodeblur.pipeline.FrameMotion` of frame 1 (left) from ``source``,
+    a scene flow with its dense flows but its boundaries as estimated (``relabel_radius``
+    0: :func:`~stereodeblur.evaluation.paper_bench.deblur_with_motion` moves them).
 
     Scene flow and initial flow are stored under ``cache`` and read back on later runs;
     gt motion is recomputed (it is cheap). Returns ``(motion, seconds, warnings)``.
@@ -39,7 +41,8 @@ def cached_motion(scene, source: str, settings, cache: Path):
     from ..sceneflow.storage import load_sceneflow, save_sceneflow
 
     kernels = "displacement" if source == "initial-flow" else settings.kernels
-    settings = replace(settings, motion_source=source, kernels=kernels)
+    # The estimate as it is, its boundaries not moved (the deblurring moves them).
+    settings = replace(settings, motion_source=source, kernels=kernels, relabel_radius=0)
     neighbour = neighbour_of(FRAME, scene.num_frames)
     path = cache / f"{source}.npz"
     if source == "sceneflow" and path.is_file():

@@ -160,14 +160,16 @@ def weight_statistics(result, mixed: np.ndarray, flow_error: np.ndarray | None) 
 
 
 def deblur_with_motion(scene, index: int, settings: DeblurSettings, motion):
-    """Frame ``index`` of the left view deblurred with its known ``motion``; where
-    ``settings`` need both views' (:func:`~stereodeblur.pipeline.frame.needs_stereo_pass`),
-    by the stereo pass from the motion's scene flow."""
+    """Frame ``index`` of the left view deblurred with its known ``motion`` (a scene flow's
+    boundaries as estimated, :func:`~.motion_cache.cached_motion`); where ``settings`` need
+    both views' (:func:`~stereodeblur.pipeline.frame.needs_stereo_pass`), by the stereo pass
+    from the motion's scene flow."""
     from ..pipeline import deblur_frame, deblur_stereo_frame
     from ..pipeline.frame import needs_stereo_pass
+    from ..pipeline.motion import relabelled
 
     if not needs_stereo_pass(settings):
-        return deblur_frame(scene, index, settings=settings, motion=motion)
+        return deblur_frame(scene, index, settings=settings, motion=relabelled(motion, settings))
     sf = motion.sceneflow if settings.motion_source == "sceneflow" else None
     stereo = deblur_stereo_frame(scene, index, views=("left",), settings=settings, sceneflow=sf)
     return stereo.frames["left"]
@@ -227,10 +229,12 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'``,
     ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    ``boundary_flow`` only when off, so results from before those options stay valid; the
+    ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
+    before those options stay valid; the
     version of the alpha rules that predict the other view; the version of the true motion's
     fit)."""
     from ..pipeline.alpha import rules_version
+    from ..pipeline.window import relabels
     from ..sceneflow.from_gt import FIT_VERSION
     from ..settings import range_guard_signature
 
@@ -244,6 +248,8 @@ def _signature(column: Column, settings) -> dict:
     ):
         if fields[name] == old:
             del fields[name]
+    if not relabels(own):
+        del fields["relabel_radius"]
     if rules_version(own) is not None:
         fields["alpha_rules"] = rules_version(own)
     if own.range_guard:

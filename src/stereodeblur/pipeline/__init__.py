@@ -19,8 +19,9 @@ types, so every variant of the paper's tables is a combination of ``motion_sourc
 - ``motion_source='sceneflow'`` (default): piecewise-rigid scene flow estimated from the
   blurred stereo frames (left view; the right view's by :func:`to_right_view`); 2D
   displacements are its projection. The views' dense optical flow comes along
-  (``FrameMotion.boundary_flow``): near motion boundaries the adaptive boundary handling
-  takes the blur from it (:func:`boundary_motion`).
+  (``FrameMotion.boundary_flow``): each view's segment boundaries are moved to where it
+  puts them (:func:`relabelled`, ``relabel_radius``), and near motion boundaries the
+  boundary handling takes the blur from it (:func:`boundary_motion`).
 - ``motion_source='gt'``: planes and motions fitted per superpixel (cut where the gt
   jumps) to the scene's gt/disparity (frame i and its neighbour) and gt/flow; 2D
   displacements taken directly from gt/flow (:func:`gt_needs` lists the files).
@@ -52,6 +53,7 @@ from .motion import (
     frame_motion,
     invert_flow,
     invert_known_flow,
+    relabelled,
     sceneflow_motion,
     stereo_motion,
     to_right_view,
@@ -106,6 +108,7 @@ __all__ = [
     "gt_needs",
     "invert_flow",
     "invert_known_flow",
+    "relabelled",
     "neighbour_of",
     "other_side",
     "read_window",

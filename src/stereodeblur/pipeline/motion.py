@@ -21,7 +21,7 @@ from scipy import ndimage
 from ..errors import InputError
 from ..progress import ProgressCallback, prefixed
 from ..sceneflow.model import SceneFlow
-from .window import FrameWindow, check_gt, read_window, uses_boundary_flow
+from .window import FrameWindow, check_gt, read_window, relabels, uses_dense_flow
 
 if TYPE_CHECKING:
     from ..io.protocol import StereoScene
@@ -247,9 +247,9 @@ def stereo_motion(
         motions = {}
         for view in views:
             motion = sceneflow_motion(sceneflow, index, neighbour, view)
-            if uses_boundary_flow(settings):
+            if uses_dense_flow(settings):
                 motion = replace(motion, boundary_flow=view_dense_flow(window, view))
-            motions[view] = motion
+            motions[view] = relabelled(motion, settings)
     elif settings.motion_source == "gt":
         motions = gt_motions(scene, window, views, settings)
     elif settings.motion_source == "initial-flow":
@@ -262,7 +262,7 @@ def stereo_motion(
         # thread of their own (OpenCV releases the GIL; the estimate mostly runs in one).
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="dense-flow") as pool:
             dense = {}
-            if uses_boundary_flow(settings):
+            if uses_dense_flow(settings):
                 dense = {view: pool.submit(view_dense_flow, window, view) for view in views}
             estimate = estimate_motion(window, settings, progress=progress)
             motions = {}
@@ -270,8 +270,22 @@ def stereo_motion(
                 motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
                 if view in dense:
                     motion = replace(motion, boundary_flow=dense[view].result())
-                motions[view] = motion
+                motions[view] = relabelled(motion, settings)
     return StereoMotion(index, MappingProxyType(motions), estimate)
+
+
+def relabelled(motion: FrameMotion, settings: DeblurSettings) -> FrameMotion:
+    """``motion`` with its scene flow's boundaries moved to its dense flow's
+    (:func:`~stereodeblur.sceneflow.relabel.relabel_by_flow`, ``settings.relabel_radius``)
+    and its 2D flows taken from the result; ``motion`` itself where ``settings`` do not
+    relabel (:func:`~.window.relabels`)."""
+    from ..sceneflow.relabel import relabel_by_flow
+
+    if not relabels(settings) or motion.boundary_flow is None:
+        return motion
+    forward, backward = motion.boundary_flow
+    sf = relabel_by_flow(motion.sceneflow, forward, backward, radius=settings.relabel_radius)
+    return replace(motion, sceneflow=sf, flow_forward=sf.flow(), flow_backward=sf.reversed().flow())
 
 
 def _check_sceneflow(sceneflow: SceneFlow, window: FrameWindow, settings) -> None:

@@ -92,10 +92,21 @@ def views_read(settings: DeblurSettings, views) -> tuple[str, ...]:
     return tuple(views)
 
 
+def relabels(settings: DeblurSettings) -> bool:
+    """Whether ``settings`` move the scene flow's segment boundaries to the dense flow's
+    (``relabel_radius``; with an estimated or given scene flow and occlusion handling)."""
+    return (
+        settings.motion_source == "sceneflow"
+        and occlusion_aware(settings)
+        and settings.relabel_radius > 0
+    )
+
+
 def uses_dense_flow(settings: DeblurSettings) -> bool:
     """Whether a run with ``settings`` computes the views' dense optical flow."""
     return settings.motion_source == "initial-flow" or (
-        settings.motion_source == "sceneflow" and uses_boundary_flow(settings)
+        settings.motion_source == "sceneflow"
+        and (uses_boundary_flow(settings) or relabels(settings))
     )
 
 

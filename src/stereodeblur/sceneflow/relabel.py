@@ -1,0 +1,94 @@
+"""Segment boundaries moved to where a dense optical flow puts them.
+
+A superpixel of the estimate ends where the blurred image's colour changes, which near a
+motion boundary is up to a blur length away from where the surfaces change. A dense flow
+of the blurred frames follows the surfaces there more closely. :func:`relabel_by_flow`
+gives each pixel near a segment boundary the segment, among those within ``radius``
+pixels, whose plane and motion predict that flow best (README, "Boundaries from the dense
+flow").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.rigid import se3_exp
+from .model import SceneFlow
+
+
+def flow_homographies(sceneflow: SceneFlow) -> np.ndarray:
+    """Per segment, the homography ``(L, 3, 3)`` that takes a reference pixel showing its
+    plane to where its motion moves it: ``K (R + t' n_v^T) K^-1`` with the plane ``n_v`` and
+    the translation ``t' = R c + T - c`` in the reference view's camera (centre ``c``)."""
+    camera = sceneflow.camera
+    c = camera.center(sceneflow.view)
+    n = sceneflow.normals
+    n_v = n / (1.0 - n @ c)[:, None]
+    motion = se3_exp(sceneflow.twists)
+    R, T = motion[:, :3, :3], motion[:, :3, 3]
+    shift = R @ c + T - c
+    return camera.K @ (R + shift[:, :, None] * n_v[:, None, :]) @ camera.K_inv
+
+
+def segment_flow(homographies: np.ndarray, x: np.ndarray, y: np.ndarray, segments: np.ndarray):
+    """Flow ``(N, 2)`` of the pixels ``(x, y)`` (each ``(N,)``) under the
+    :func:`flow_homographies` of ``segments`` (``(N,)`` indices)."""
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    h = homographies[segments]
+    q = h[:, :, 0] * x[:, None] + h[:, :, 1] * y[:, None] + h[:, :, 2]
+    return np.stack([q[:, 0] / q[:, 2] - x, q[:, 1] / q[:, 2] - y], axis=-1)
+
+
+def relabel_by_flow(
+    sceneflow: SceneFlow, forward: np.ndarray, backward: np.ndarray | None = None, *, radius: int
+) -> SceneFlow:
+    """``sceneflow`` with each pixel given the segment within ``radius`` px (square window)
+    whose flows (:func:`segment_flow`) come nearest the dense flows ``forward`` (to the
+    frame the scene flow's motions lead to) and ``backward`` (to the frame on the other
+    side, if given; each ``(H, W, 2)``): the least sum of the end-point distances. A tie
+    keeps the pixel's own segment. Planes, motions and the occlusion mask are kept."""
+    labels = sceneflow.labels
+    height, width = labels.shape
+    targets = [(flow_homographies(sceneflow), forward)]
+    if backward is not None:
+        targets.append((flow_homographies(sceneflow.reversed()), backward))
+    for _, flow in targets:
+        if np.shape(flow) != (height, width, 2):
+            raise ValueError(f"flows must have shape {(height, width, 2)}, got {np.shape(flow)}")
+    ys, xs = np.mgrid[0:height, 0:width]
+    xs, ys = xs.ravel(), ys.ravel()
+    targets = [(h, np.asarray(f, dtype=np.float64).reshape(-1, 2)) for h, f in targets]
+
+    def error(index, segments):
+        total = np.zeros(index.size)
+        for homographies, target in targets:
+            predicted = segment_flow(homographies, xs[index], ys[index], segments)
+            total += np.linalg.norm(predicted - target[index], axis=1)
+        return total
+
+    own = labels.ravel()
+    out = own.copy()
+    best = error(np.arange(own.size), own)
+    padded = np.pad(labels, radius, mode="edge")
+
+    def window(dy, dx):
+        return padded[dy : dy + height, dx : dx + width].ravel()
+
+    for dy in range(2 * radius + 1):
+        for dx in range(2 * radius + 1):
+            shifted = window(dy, dx)
+            new = shifted != own
+            # A candidate met one column left or one row up has been weighed already.
+            if dx > 0:
+                new &= shifted != window(dy, dx - 1)
+            if dy > 0:
+                new &= shifted != window(dy - 1, dx)
+            index = np.flatnonzero(new)
+            e = error(index, shifted[index])
+            better = e < best[index]
+            best[index[better]], out[index[better]] = e[better], shifted[index[better]]
+    return SceneFlow(
+        sceneflow.camera, out.reshape(height, width), sceneflow.normals, sceneflow.twists,
+        sceneflow.occlusion, sceneflow.view,
+    )  # fmt: skip

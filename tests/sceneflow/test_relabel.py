@@ -1,0 +1,70 @@
+"""Segment boundaries moved to a dense flow's (sceneflow.relabel)."""
+
+import numpy as np
+import pytest
+
+from stereodeblur.geometry.camera import StereoCamera
+from stereodeblur.pipeline.motion import to_right_view
+from stereodeblur.sceneflow.model import SceneFlow
+from stereodeblur.sceneflow.relabel import flow_homographies, relabel_by_flow, segment_flow
+
+CAMERA = StereoCamera(np.array([[50.0, 0, 20], [0, 50.0, 12], [0, 0, 1]]), 0.3)
+HEIGHT, WIDTH = 24, 40
+EDGE = 20  # the true boundary: segment 0 left of it, segment 1 from it on
+
+
+def two_surfaces(edge: int) -> SceneFlow:
+    """A far plane moving right (segment 0) and a near, tilted plane moving left and up
+    (segment 1), split at column ``edge``."""
+    labels = np.zeros((HEIGHT, WIDTH), dtype=np.int32)
+    labels[:, edge:] = 1
+    normals = np.array([[0.0, 0.0, 0.1], [0.02, 0.01, 0.2]])
+    twists = np.array([[0.1, 0, 0, 0, 0, 0], [-0.2, 0.05, 0.1, 0, 0.01, 0]])
+    return SceneFlow(CAMERA, labels, normals, twists, np.zeros((HEIGHT, WIDTH), bool))
+
+
+@pytest.mark.parametrize("view", ["left", "right"])
+def test_segment_flow_is_the_scene_flows_own(view):
+    sf = two_surfaces(EDGE)
+    sf = to_right_view(sf) if view == "right" else sf
+    y, x = np.mgrid[0:HEIGHT, 0:WIDTH]
+    flow = segment_flow(flow_homographies(sf), x.ravel(), y.ravel(), sf.labels.ravel())
+    np.testing.assert_allclose(flow.reshape(HEIGHT, WIDTH, 2), sf.flow(), atol=1e-9)
+    back = segment_flow(flow_homographies(sf.reversed()), x.ravel(), y.ravel(), sf.labels.ravel())
+    np.testing.assert_allclose(back.reshape(HEIGHT, WIDTH, 2), sf.reversed().flow(), atol=1e-9)
+
+
+def test_the_boundary_moves_to_the_flows_within_the_radius():
+    truth = two_surfaces(EDGE)
+    estimate = two_surfaces(EDGE + 4)  # the estimate's boundary 4 px right of the truth's
+    moved = relabel_by_flow(estimate, truth.flow(), truth.reversed().flow(), radius=6)
+    np.testing.assert_array_equal(moved.labels, truth.labels)
+    part = relabel_by_flow(estimate, truth.flow(), radius=2)  # only 2 px of the 4
+    np.testing.assert_array_equal(part.labels, two_surfaces(EDGE + 2).labels)
+    for out in (moved, part):
+        np.testing.assert_array_equal(out.normals, estimate.normals)
+        np.testing.assert_array_equal(out.twists, estimate.twists)
+        assert out.occlusion is estimate.occlusion and out.view == estimate.view
+
+
+def test_its_own_flow_keeps_every_label():
+    sf = two_surfaces(EDGE)
+    assert np.array_equal(relabel_by_flow(sf, sf.flow(), radius=5).labels, sf.labels)
+
+
+def test_the_backward_flow_decides_where_the_forward_flow_misleads():
+    truth, estimate = two_surfaces(EDGE), two_surfaces(EDGE - 3)
+    # In the disputed columns the forward flow leans to the estimate's surface (as a dense
+    # flow does where that surface comes to cover the pixel); the backward flow does not.
+    forward = truth.flow().copy()
+    lean = 0.6 * estimate.flow() + 0.4 * truth.flow()
+    forward[:, EDGE - 3 : EDGE] = lean[:, EDGE - 3 : EDGE]
+    assert np.array_equal(relabel_by_flow(estimate, forward, radius=4).labels, estimate.labels)
+    both = relabel_by_flow(estimate, forward, truth.reversed().flow(), radius=4)
+    np.testing.assert_array_equal(both.labels, truth.labels)
+
+
+def test_a_flow_of_another_size_is_refused():
+    sf = two_surfaces(EDGE)
+    with pytest.raises(ValueError, match="shape"):
+        relabel_by_flow(sf, np.zeros((HEIGHT, WIDTH - 1, 2)), radius=3)
