@@ -60,6 +60,7 @@ import numpy as np
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
+from stereodeblur.pipeline.motion import RELABEL_VERSION
 from stereodeblur.pipeline.window import relabels
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
@@ -210,7 +211,9 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
-    if not relabels(settings):
+    if relabels(settings):
+        text += f" relabel rule {RELABEL_VERSION}"
+    else:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     version = rules_version(settings) if rules else None
     stored = MOTION_STORED if settings.motion_source == "sceneflow" else ""

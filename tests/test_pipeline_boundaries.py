@@ -7,7 +7,7 @@ import pytest
 
 from stereodeblur.blur.visibility import hidden_fraction, sceneflow_visibility
 from stereodeblur.deconv.noise import auto_alpha
-from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view
+from stereodeblur.deconv.trust import BOUNDARY_RELATIVE, OUTSIDE_WEIGHT, leaves_view
 from stereodeblur.deconv.weights import hidden_weights
 from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
@@ -19,6 +19,7 @@ from stereodeblur.pipeline import (
     deblur_stereo_frame,
     frame_motion,
 )
+from stereodeblur.pipeline.motion import RELABEL_JUMP
 from stereodeblur.sceneflow.relabel import relabel_by_flow
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
@@ -199,7 +200,11 @@ def test_the_scene_flows_boundaries_move_to_the_dense_flows(scene):
     unmoved = frame_motion(scene, 1, "left", replace(estimated, relabel_radius=0))
     moved = frame_motion(scene, 1, "left", estimated)
     expected = relabel_by_flow(
-        unmoved.sceneflow, *unmoved.boundary_flow, radius=estimated.relabel_radius
+        unmoved.sceneflow,
+        *unmoved.boundary_flow,
+        radius=estimated.relabel_radius,
+        jump=RELABEL_JUMP,
+        relative=BOUNDARY_RELATIVE,
     )
     assert not np.array_equal(expected.labels, unmoved.sceneflow.labels)
     np.testing.assert_array_equal(moved.sceneflow.labels, expected.labels)

@@ -64,6 +64,24 @@ def test_the_backward_flow_decides_where_the_forward_flow_misleads():
     np.testing.assert_array_equal(both.labels, truth.labels)
 
 
+def test_segments_of_one_surface_are_not_swapped():
+    def one_surface(edge):  # two segments, the second's motion 1 % faster towards the camera
+        sf = two_surfaces(edge)
+        twists = sf.twists[[0, 0]] + [[0, 0, 0, 0, 0, 0], [0, 0, 0.01, 0, 0, 0]]
+        return SceneFlow(CAMERA, sf.labels, sf.normals[[0, 0]], twists, sf.occlusion)
+
+    estimate, truth = one_surface(EDGE), one_surface(EDGE + 3)
+    difference = np.abs(estimate.flow() - truth.flow()).max()
+    assert 0.01 < difference < 0.5  # the two segments' flows differ, by less than the jump
+    swapped = relabel_by_flow(estimate, truth.flow(), radius=4)  # without a jump they swap
+    np.testing.assert_array_equal(swapped.labels, truth.labels)
+    kept = relabel_by_flow(estimate, truth.flow(), radius=4, jump=0.5, relative=0.02)
+    np.testing.assert_array_equal(kept.labels, estimate.labels)
+    estimate, truth = two_surfaces(EDGE + 4), two_surfaces(EDGE)  # two surfaces: moved
+    moved = relabel_by_flow(estimate, truth.flow(), radius=6, jump=0.5, relative=0.02)
+    np.testing.assert_array_equal(moved.labels, truth.labels)
+
+
 def test_a_flow_of_another_size_is_refused():
     sf = two_surfaces(EDGE)
     with pytest.raises(ValueError, match="shape"):

@@ -234,6 +234,7 @@ def _signature(column: Column, settings) -> dict:
     version of the alpha rules that predict the other view; the version of the true motion's
     fit)."""
     from ..pipeline.alpha import rules_version
+    from ..pipeline.motion import RELABEL_VERSION
     from ..pipeline.window import relabels
     from ..sceneflow.from_gt import FIT_VERSION
     from ..settings import range_guard_signature
@@ -248,7 +249,9 @@ def _signature(column: Column, settings) -> dict:
     ):
         if fields[name] == old:
             del fields[name]
-    if not relabels(own):
+    if relabels(own):
+        fields["relabel_rule"] = RELABEL_VERSION
+    else:
         del fields["relabel_radius"]
     if rules_version(own) is not None:
         fields["alpha_rules"] = rules_version(own)

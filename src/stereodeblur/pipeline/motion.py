@@ -274,17 +274,35 @@ def stereo_motion(
     return StereoMotion(index, MappingProxyType(motions), estimate)
 
 
+RELABEL_VERSION = 2
+"""Version of :func:`relabelled`'s rule, in the benchmarks' cache signatures (1: any segment
+within the radius; 2: another surface only, :data:`RELABEL_JUMP`)."""
+
+RELABEL_JUMP = 0.5
+"""px: a pixel takes only a segment whose flow differs from its own segment's by more (and by
+more than ``BOUNDARY_RELATIVE`` of it), as a motion boundary is told in the trust: the
+segments of one surface are not swapped (bench planar's forward_roll lost 0.67 dB that way)."""
+
+
 def relabelled(motion: FrameMotion, settings: DeblurSettings) -> FrameMotion:
     """``motion`` with its scene flow's boundaries moved to its dense flow's
-    (:func:`~stereodeblur.sceneflow.relabel.relabel_by_flow`, ``settings.relabel_radius``)
-    and its 2D flows taken from the result; ``motion`` itself where ``settings`` do not
-    relabel (:func:`~.window.relabels`)."""
+    (:func:`~stereodeblur.sceneflow.relabel.relabel_by_flow`, ``settings.relabel_radius``,
+    another surface only: :data:`RELABEL_JUMP`) and its 2D flows taken from the result;
+    ``motion`` itself where ``settings`` do not relabel (:func:`~.window.relabels`)."""
+    from ..deconv.trust import BOUNDARY_RELATIVE
     from ..sceneflow.relabel import relabel_by_flow
 
     if not relabels(settings) or motion.boundary_flow is None:
         return motion
     forward, backward = motion.boundary_flow
-    sf = relabel_by_flow(motion.sceneflow, forward, backward, radius=settings.relabel_radius)
+    sf = relabel_by_flow(
+        motion.sceneflow,
+        forward,
+        backward,
+        radius=settings.relabel_radius,
+        jump=RELABEL_JUMP,
+        relative=BOUNDARY_RELATIVE,
+    )
     return replace(motion, sceneflow=sf, flow_forward=sf.flow(), flow_backward=sf.reversed().flow())
 
 

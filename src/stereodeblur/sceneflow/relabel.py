@@ -41,13 +41,23 @@ def segment_flow(homographies: np.ndarray, x: np.ndarray, y: np.ndarray, segment
 
 
 def relabel_by_flow(
-    sceneflow: SceneFlow, forward: np.ndarray, backward: np.ndarray | None = None, *, radius: int
+    sceneflow: SceneFlow,
+    forward: np.ndarray,
+    backward: np.ndarray | None = None,
+    *,
+    radius: int,
+    jump: float = 0.0,
+    relative: float = 0.0,
 ) -> SceneFlow:
     """``sceneflow`` with each pixel given the segment within ``radius`` px (square window)
     whose flows (:func:`segment_flow`) come nearest the dense flows ``forward`` (to the
     frame the scene flow's motions lead to) and ``backward`` (to the frame on the other
     side, if given; each ``(H, W, 2)``): the least sum of the end-point distances. A tie
-    keeps the pixel's own segment. Planes, motions and the occlusion mask are kept."""
+    keeps the pixel's own segment. Only another surface is taken: a segment whose forward
+    flow at the pixel differs from the pixel's own segment's by more than ``jump`` px and
+    more than ``relative`` times the longer of the two (as
+    :func:`~stereodeblur.deconv.trust.near_motion_boundaries` tells a motion boundary).
+    Planes, motions and the occlusion mask are kept."""
     labels = sceneflow.labels
     height, width = labels.shape
     targets = [(flow_homographies(sceneflow), forward)]
@@ -60,14 +70,21 @@ def relabel_by_flow(
     xs, ys = xs.ravel(), ys.ravel()
     targets = [(h, np.asarray(f, dtype=np.float64).reshape(-1, 2)) for h, f in targets]
 
+    own = labels.ravel()
+    own_flow = segment_flow(targets[0][0], xs, ys, own)
+
     def error(index, segments):
         total = np.zeros(index.size)
-        for homographies, target in targets:
+        for k, (homographies, target) in enumerate(targets):
             predicted = segment_flow(homographies, xs[index], ys[index], segments)
             total += np.linalg.norm(predicted - target[index], axis=1)
+            if k == 0:  # the same surface (no motion boundary between them) is no candidate
+                theirs = own_flow[index]
+                longer = np.maximum(np.hypot(*predicted.T), np.hypot(*theirs.T))
+                same = np.hypot(*(predicted - theirs).T) <= np.maximum(jump, relative * longer)
+                total[same & (segments != own[index])] = np.inf
         return total
 
-    own = labels.ravel()
     out = own.copy()
     best = error(np.arange(own.size), own)
     padded = np.pad(labels, radius, mode="edge")
