@@ -123,11 +123,22 @@ def main() -> None:
     parser.add_argument("--interpolation", help="--interpolation of the run (default: the default)")
     parser.add_argument("--num_irls", "--irls", dest="num_irls", type=int, help="IRLS iterations")
     parser.add_argument("--num_cg", "--cg", dest="num_cg", type=int, help="CG steps per iteration")
+    parser.add_argument(
+        "--relabel_radius", "--relabel-radius", dest="relabel_radius", type=int,
+        help="--relabel-radius of the run (default: the default)",
+    )  # fmt: skip
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     options = {
         name: getattr(args, name)
-        for name in ("alpha", "observations", "interpolation", "num_irls", "num_cg")
+        for name in (
+            "alpha",
+            "observations",
+            "interpolation",
+            "num_irls",
+            "num_cg",
+            "relabel_radius",
+        )
         if getattr(args, name) is not None
     }
     if args.child:
