@@ -205,8 +205,8 @@ def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
     ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
-    before those options stay valid), for
-    the rules that predict the other view their version (unless not ``rules``: what does not
+    before those options stay valid), the relabelling rule's version where it acts, for the
+    rules that predict the other view their version (unless not ``rules``: what does not
     depend on the alpha) and for the true motion the version of its fit."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")

@@ -230,9 +230,8 @@ def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'``,
     ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
     ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
-    before those options stay valid; the
-    version of the alpha rules that predict the other view; the version of the true motion's
-    fit)."""
+    before those options stay valid; the versions of the alpha rules that predict the other
+    view, of the relabelling rule and of the true motion's fit)."""
     from ..pipeline.alpha import rules_version
     from ..pipeline.motion import RELABEL_VERSION
     from ..pipeline.window import relabels
