@@ -124,9 +124,8 @@ def main() -> None:
     parser.add_argument("--num_irls", "--irls", dest="num_irls", type=int, help="IRLS iterations")
     parser.add_argument("--num_cg", "--cg", dest="num_cg", type=int, help="CG steps per iteration")
     parser.add_argument(
-        "--relabel_radius", "--relabel-radius", dest="relabel_radius", type=int,
-        help="--relabel-radius of the run (default: the default)",
-    )  # fmt: skip
+        "--relabel-radius", dest="relabel_radius", type=int, help="--relabel-radius of the run"
+    )
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     options = {

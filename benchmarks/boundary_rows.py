@@ -102,17 +102,16 @@ def evaluate(work: Path, name: str, chosen=MOTIONS) -> dict:
     border = border_for(sharp.shape[1])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        truth = true_sceneflow(scene)
         disparity, flow = scene.read_gt_disparity("left", 1), scene.read_gt_flow("left", 1)
         motions = {
-            "estimated": estimate,
-            "moved": estimate,
-            "relabelled": relabelled(estimate, disparity, flow),
-            "true": truth,
+            "estimated": lambda: estimate,
+            "moved": lambda: estimate,
+            "relabelled": lambda: relabelled(estimate, disparity, flow),
+            "true": lambda: true_sceneflow(scene),
         }
         row = {"scene": name}
         for motion in chosen:
-            sceneflow = motions[motion]
+            sceneflow = motions[motion]()
             radius = DeblurSettings().relabel_radius if motion == "moved" else 0
             for dense in OPERATORS:
                 settings = replace(DeblurSettings(), boundary_flow=dense, relabel_radius=radius)

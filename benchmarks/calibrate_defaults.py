@@ -60,8 +60,7 @@ import numpy as np
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
-from stereodeblur.pipeline.motion import RELABEL_VERSION
-from stereodeblur.pipeline.window import relabels
+from stereodeblur.pipeline.motion import relabel_rule
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
 
@@ -211,10 +210,10 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
-    if relabels(settings):
-        text += f" relabel rule {RELABEL_VERSION}"
-    else:
+    if relabel_rule(settings) is None:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
+    else:
+        text += f" relabel rule {relabel_rule(settings)}"
     version = rules_version(settings) if rules else None
     stored = MOTION_STORED if settings.motion_source == "sceneflow" else ""
     fit = f" true motion fit {FIT_VERSION}" if settings.motion_source == "gt" else ""
@@ -368,11 +367,9 @@ def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path)
     source = column.motion_source
     key = (source, own.num_segments, own.sceneflow)
     if key not in motions:
-        default = Column("default", source).settings()
-        settings = replace(
-            default, num_segments=own.num_segments, sceneflow=own.sceneflow, relabel_radius=0
-        )
-        if settings == replace(default, relabel_radius=0):
+        unmoved = replace(Column("default", source).settings(), relabel_radius=0)
+        settings = replace(unmoved, num_segments=own.num_segments, sceneflow=own.sceneflow)
+        if settings == unmoved:
             motions[key], spent, _ = cached_motion(scene, source, settings, cache)
             seconds.setdefault(source, spent)
         else:

@@ -233,8 +233,7 @@ def _signature(column: Column, settings) -> dict:
     before those options stay valid; the versions of the alpha rules that predict the other
     view, of the relabelling rule and of the true motion's fit)."""
     from ..pipeline.alpha import rules_version
-    from ..pipeline.motion import RELABEL_VERSION
-    from ..pipeline.window import relabels
+    from ..pipeline.motion import relabel_rule
     from ..sceneflow.from_gt import FIT_VERSION
     from ..settings import range_guard_signature
 
@@ -248,10 +247,10 @@ def _signature(column: Column, settings) -> dict:
     ):
         if fields[name] == old:
             del fields[name]
-    if relabels(own):
-        fields["relabel_rule"] = RELABEL_VERSION
-    else:
+    if relabel_rule(own) is None:
         del fields["relabel_radius"]
+    else:
+        fields["relabel_rule"] = relabel_rule(own)
     if rules_version(own) is not None:
         fields["alpha_rules"] = rules_version(own)
     if own.range_guard:

@@ -145,10 +145,22 @@ def to_right_view(sceneflow: SceneFlow) -> SceneFlow:
     )
 
 
-def sceneflow_motion(sceneflow: SceneFlow, index: int, neighbour: int, view: str) -> FrameMotion:
-    """Motion of frame ``index`` of ``view`` from a left-view scene flow towards ``neighbour``."""
+def sceneflow_motion(
+    sceneflow: SceneFlow,
+    index: int,
+    neighbour: int,
+    view: str,
+    *,
+    dense: tuple | None = None,
+    settings: DeblurSettings | None = None,
+) -> FrameMotion:
+    """Motion of frame ``index`` of ``view`` from a left-view scene flow towards ``neighbour``;
+    ``dense`` the view's dense flows (``boundary_flow``), its boundaries moved to them where
+    ``settings`` relabel (:func:`moved_boundaries`)."""
     sf = to_right_view(sceneflow) if view == "right" else sceneflow
-    return FrameMotion(index, neighbour, view, sf, sf.flow(), sf.reversed().flow())
+    if dense is not None and settings is not None:
+        sf = moved_boundaries(sf, dense, settings)
+    return FrameMotion(index, neighbour, view, sf, sf.flow(), sf.reversed().flow(), dense)
 
 
 def gt_motions(scene: StereoScene, window: FrameWindow, views, settings) -> dict:
@@ -246,10 +258,10 @@ def stereo_motion(
         _check_sceneflow(sceneflow, window, settings)
         motions = {}
         for view in views:
-            motion = sceneflow_motion(sceneflow, index, neighbour, view)
-            if uses_dense_flow(settings):
-                motion = replace(motion, boundary_flow=view_dense_flow(window, view))
-            motions[view] = relabelled(motion, settings)
+            dense = view_dense_flow(window, view) if uses_dense_flow(settings) else None
+            motions[view] = sceneflow_motion(
+                sceneflow, index, neighbour, view, dense=dense, settings=settings
+            )
     elif settings.motion_source == "gt":
         motions = gt_motions(scene, window, views, settings)
     elif settings.motion_source == "initial-flow":
@@ -265,17 +277,22 @@ def stereo_motion(
             if uses_dense_flow(settings):
                 dense = {view: pool.submit(view_dense_flow, window, view) for view in views}
             estimate = estimate_motion(window, settings, progress=progress)
-            motions = {}
-            for view in views:
-                motion = sceneflow_motion(estimate.sceneflow, index, neighbour, view)
-                if view in dense:
-                    motion = replace(motion, boundary_flow=dense[view].result())
-                motions[view] = relabelled(motion, settings)
+            motions = {
+                view: sceneflow_motion(
+                    estimate.sceneflow,
+                    index,
+                    neighbour,
+                    view,
+                    dense=dense[view].result() if view in dense else None,
+                    settings=settings,
+                )
+                for view in views
+            }
     return StereoMotion(index, MappingProxyType(motions), estimate)
 
 
 RELABEL_VERSION = 2
-"""Version of :func:`relabelled`'s rule, in the benchmarks' cache signatures (1: any segment
+"""Version of :func:`moved_boundaries`' rule, in the benchmarks' cache signatures (1: any segment
 within the radius; 2: another surface only, :data:`RELABEL_JUMP`)."""
 
 RELABEL_JUMP = 0.5
@@ -284,25 +301,37 @@ more than ``BOUNDARY_RELATIVE`` of it), as a motion boundary is told in the trus
 segments of one surface are not swapped (bench planar's forward_roll lost 0.67 dB that way)."""
 
 
-def relabelled(motion: FrameMotion, settings: DeblurSettings) -> FrameMotion:
-    """``motion`` with its scene flow's boundaries moved to its dense flow's
-    (:func:`~stereodeblur.sceneflow.relabel.relabel_by_flow`, ``settings.relabel_radius``,
-    another surface only: :data:`RELABEL_JUMP`) and its 2D flows taken from the result;
-    ``motion`` itself where ``settings`` do not relabel (:func:`~.window.relabels`)."""
+def relabel_rule(settings: DeblurSettings) -> int | None:
+    """:data:`RELABEL_VERSION` where ``settings`` relabel (:func:`~.window.relabels`), else
+    None: what the benchmarks' cache signatures hold of the relabelling."""
+    return RELABEL_VERSION if relabels(settings) else None
+
+
+def moved_boundaries(sceneflow: SceneFlow, dense: tuple, settings: DeblurSettings) -> SceneFlow:
+    """A view's ``sceneflow`` with its boundaries moved to its dense flows ``dense``
+    (``(forward, backward or None)``; :func:`~stereodeblur.sceneflow.relabel.relabel_by_flow`,
+    ``settings.relabel_radius``, another surface only: :data:`RELABEL_JUMP`), or as it is
+    where ``settings`` do not relabel (:func:`~.window.relabels`)."""
     from ..deconv.trust import BOUNDARY_RELATIVE
     from ..sceneflow.relabel import relabel_by_flow
 
-    if not relabels(settings) or motion.boundary_flow is None:
-        return motion
-    forward, backward = motion.boundary_flow
-    sf = relabel_by_flow(
-        motion.sceneflow,
-        forward,
-        backward,
+    if not relabels(settings):
+        return sceneflow
+    return relabel_by_flow(
+        sceneflow,
+        *dense,
         radius=settings.relabel_radius,
         jump=RELABEL_JUMP,
         relative=BOUNDARY_RELATIVE,
     )
+
+
+def relabelled(motion: FrameMotion, settings: DeblurSettings) -> FrameMotion:
+    """A given ``motion`` (its boundaries as estimated, with its dense flows) as
+    :func:`stereo_motion` makes it: :func:`moved_boundaries`, the 2D flows from the result."""
+    if motion.boundary_flow is None or not relabels(settings):
+        return motion
+    sf = moved_boundaries(motion.sceneflow, motion.boundary_flow, settings)
     return replace(motion, sceneflow=sf, flow_forward=sf.flow(), flow_backward=sf.reversed().flow())
 
 

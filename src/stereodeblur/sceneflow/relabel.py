@@ -68,25 +68,27 @@ def relabel_by_flow(
             raise ValueError(f"flows must have shape {(height, width, 2)}, got {np.shape(flow)}")
     ys, xs = np.mgrid[0:height, 0:width]
     xs, ys = xs.ravel(), ys.ravel()
-    targets = [(h, np.asarray(f, dtype=np.float64).reshape(-1, 2)) for h, f in targets]
-
     own = labels.ravel()
-    own_flow = segment_flow(targets[0][0], xs, ys, own)
+    targets = [(h, np.asarray(f, dtype=np.float64).reshape(-1, 2)) for h, f in targets]
+    own_forward = segment_flow(targets[0][0], xs, ys, own)
+    best = np.linalg.norm(own_forward - targets[0][1], axis=1)
+    for homographies, target in targets[1:]:
+        best += np.linalg.norm(segment_flow(homographies, xs, ys, own) - target, axis=1)
 
     def error(index, segments):
+        """Distance of other ``segments``' flows at pixels ``index``; inf for one surface."""
         total = np.zeros(index.size)
         for k, (homographies, target) in enumerate(targets):
             predicted = segment_flow(homographies, xs[index], ys[index], segments)
             total += np.linalg.norm(predicted - target[index], axis=1)
-            if k == 0:  # the same surface (no motion boundary between them) is no candidate
-                theirs = own_flow[index]
+            if k == 0:  # no motion boundary between them: the same surface, no candidate
+                theirs = own_forward[index]
                 longer = np.maximum(np.hypot(*predicted.T), np.hypot(*theirs.T))
                 same = np.hypot(*(predicted - theirs).T) <= np.maximum(jump, relative * longer)
-                total[same & (segments != own[index])] = np.inf
+                total[same] = np.inf
         return total
 
     out = own.copy()
-    best = error(np.arange(own.size), own)
     padded = np.pad(labels, radius, mode="edge")
 
     def window(dy, dx):
