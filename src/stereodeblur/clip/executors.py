@@ -84,6 +84,8 @@ class SerialExecutor:
 def _terminate(pool) -> None:
     """Stop a process pool now: cancel what waits, end the workers (frames in flight are lost)."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    # Taken before shutdown(), which drops the pool's reference to it.
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         if process.is_alive():
@@ -93,10 +95,10 @@ def _terminate(pool) -> None:
         if process.is_alive():  # pragma: no cover - a worker ignoring SIGTERM
             process.kill()
             process.join(timeout=5)
-    # The pool's manager thread sees the workers gone and ends; left running, it could meet
-    # the pool's closed pipes at interpreter exit and print a traceback (seen once under
-    # SIGTERM in tests/faults/test_processes.py).
-    manager = getattr(pool, "_executor_manager_thread", None)
+    # The pool's manager thread sees the workers gone, closes its wake-up pipe and ends. Left
+    # running, it races concurrent.futures' exit hook, which writes to that pipe: "Bad file
+    # descriptor" and a traceback at interpreter exit (seen under SIGTERM in
+    # tests/faults/test_processes.py).
     if manager is not None:
         manager.join(timeout=5)
 
