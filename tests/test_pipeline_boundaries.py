@@ -19,7 +19,7 @@ from stereodeblur.pipeline import (
     deblur_stereo_frame,
     frame_motion,
 )
-from stereodeblur.pipeline.motion import RELABEL_JUMP
+from stereodeblur.pipeline.motion import RELABEL_JUMP, RELABEL_MARGIN
 from stereodeblur.sceneflow.relabel import relabel_by_flow
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
@@ -205,6 +205,7 @@ def test_the_scene_flows_boundaries_move_to_the_dense_flows(scene):
         radius=estimated.relabel_radius,
         jump=RELABEL_JUMP,
         relative=BOUNDARY_RELATIVE,
+        margin=RELABEL_MARGIN,
     )
     assert not np.array_equal(expected.labels, unmoved.sceneflow.labels)
     np.testing.assert_array_equal(moved.sceneflow.labels, expected.labels)

@@ -86,3 +86,21 @@ def test_a_flow_of_another_size_is_refused():
     sf = two_surfaces(EDGE)
     with pytest.raises(ValueError, match="shape"):
         relabel_by_flow(sf, np.zeros((HEIGHT, WIDTH - 1, 2)), radius=3)
+
+
+def test_a_margin_keeps_the_labels_where_the_flow_is_wrong_everywhere():
+    truth, estimate = two_surfaces(EDGE), two_surfaces(EDGE + 4)
+    # Clean flows: the segments fit them (median distance 0), so the margin changes nothing.
+    clean = relabel_by_flow(estimate, truth.flow(), truth.reversed().flow(), radius=6, margin=1)
+    np.testing.assert_array_equal(clean.labels, truth.labels)
+    # Flows off by a few px everywhere (as DIS on noisy fine stripes): without a margin, the
+    # noise moves pixels along the boundary's band; with it, hardly any.
+    rng = np.random.default_rng(0)
+    step = np.abs(truth.flow()[:, EDGE] - truth.flow()[:, EDGE - 1]).max()
+    forward, backward = (
+        flow + rng.normal(0, 0.5 * step, flow.shape)
+        for flow in (estimate.flow(), estimate.reversed().flow())
+    )
+    noisy = (relabel_by_flow(estimate, forward, backward, radius=6).labels != estimate.labels).sum()
+    kept = relabel_by_flow(estimate, forward, backward, radius=6, margin=1)
+    assert noisy > 20 and (kept.labels != estimate.labels).sum() <= 0.1 * noisy

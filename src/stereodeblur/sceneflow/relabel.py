@@ -48,6 +48,7 @@ def relabel_by_flow(
     radius: int,
     jump: float = 0.0,
     relative: float = 0.0,
+    margin: float = 0.0,
 ) -> SceneFlow:
     """``sceneflow`` with each pixel given the segment within ``radius`` px (square window)
     whose flows (:func:`segment_flow`) come nearest the dense flows ``forward`` (to the
@@ -56,8 +57,10 @@ def relabel_by_flow(
     keeps the pixel's own segment. Only another surface is taken: a segment whose forward
     flow at the pixel differs from the pixel's own segment's by more than ``jump`` px and
     more than ``relative`` times the longer of the two (as
-    :func:`~stereodeblur.deconv.trust.near_motion_boundaries` tells a motion boundary).
-    Planes, motions and the occlusion mask are kept."""
+    :func:`~stereodeblur.deconv.trust.near_motion_boundaries` tells a motion boundary),
+    and only by more than ``margin`` times the view's median distance of its own segments:
+    where the dense flow disagrees with the estimate everywhere, one pixel's distance is no
+    evidence. Planes, motions and the occlusion mask are kept."""
     labels = sceneflow.labels
     height, width = labels.shape
     targets = [(flow_homographies(sceneflow), forward)]
@@ -75,9 +78,12 @@ def relabel_by_flow(
     for homographies, target in targets[1:]:
         best += np.linalg.norm(segment_flow(homographies, xs, ys, own) - target, axis=1)
 
+    threshold = margin * np.median(best)
+
     def error(index, segments):
-        """Distance of other ``segments``' flows at pixels ``index``; inf for one surface."""
-        total = np.zeros(index.size)
+        """Distance of other ``segments``' flows at pixels ``index``, plus the margin; inf
+        for one surface."""
+        total = np.full(index.size, threshold)
         for k, (homographies, target) in enumerate(targets):
             predicted = segment_flow(homographies, xs[index], ys[index], segments)
             total += np.linalg.norm(predicted - target[index], axis=1)
