@@ -176,8 +176,13 @@ def sweep(size, workers: int, images, *, done: list[dict], output: str | None) -
     run_task(
         (images[0], "whole", "roll", 0, 1e-3, (16, 16))
     )  # compile the numba kernels once, here
+    from stereodeblur.clip.worker import watch_parent
+
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context) as pool:
+    pool = ProcessPoolExecutor(
+        workers, mp_context=context, initializer=watch_parent, initargs=(os.getpid(),)
+    )  # workers end with this process
+    with pool:
         futures = [pool.submit(run_task, task) for task in tasks]
         for future in as_completed(futures):
             rows.append(future.result())
