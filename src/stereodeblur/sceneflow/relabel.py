@@ -58,9 +58,9 @@ def relabel_by_flow(
     flow at the pixel differs from the pixel's own segment's by more than ``jump`` px and
     more than ``relative`` times the longer of the two (as
     :func:`~stereodeblur.deconv.trust.near_motion_boundaries` tells a motion boundary),
-    and only by more than ``margin`` times the view's median distance of its own segments:
-    where the dense flow disagrees with the estimate everywhere, one pixel's distance is no
-    evidence. Planes, motions and the occlusion mask are kept."""
+    and only by more than ``margin`` times the median over the view of the own segments'
+    distances: where the dense flow disagrees with the estimate everywhere, one pixel's
+    distance is no evidence. Planes, motions and the occlusion mask are kept."""
     labels = sceneflow.labels
     height, width = labels.shape
     targets = [(flow_homographies(sceneflow), forward)]
