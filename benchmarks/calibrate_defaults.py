@@ -350,6 +350,12 @@ def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
     }
 
 
+def unmoved(source: str):
+    """The default settings of motion ``source`` with the boundaries as estimated: what a
+    stored motion and the frame features are computed with (the deblurring moves them)."""
+    return replace(Column("default", source).settings(), relabel_radius=0)
+
+
 def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path):
     """Frame 1's motion for ``column``: its source's with the default settings but the
     column's superpixels and scene-flow settings, computed once per scene and estimator into
@@ -367,9 +373,9 @@ def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path)
     source = column.motion_source
     key = (source, own.num_segments, own.sceneflow)
     if key not in motions:
-        unmoved = replace(Column("default", source).settings(), relabel_radius=0)
-        settings = replace(unmoved, num_segments=own.num_segments, sceneflow=own.sceneflow)
-        if settings == unmoved:
+        estimated = unmoved(source)
+        settings = replace(estimated, num_segments=own.num_segments, sceneflow=own.sceneflow)
+        if settings == estimated:
             motions[key], spent, _ = cached_motion(scene, source, settings, cache)
             seconds.setdefault(source, spent)
         else:
@@ -425,9 +431,7 @@ def run_scene(task) -> dict:
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"
-        # Measured on the motion as estimated (motion_for): the relabelling does not enter.
-        unmoved = replace(Column("default", source).settings(), relabel_radius=0)
-        signature = _signature(unmoved, rules=False)
+        signature = _signature(unmoved(source), rules=False)
         signature += FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:

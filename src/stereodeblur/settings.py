@@ -143,10 +143,11 @@ DEFAULT_BOUNDARY_FLOW = True
 # Pixels within this many px of a scene-flow segment boundary take the segment of another
 # surface nearby whose flows come nearest the dense flows to both neighbouring frames
 # (DeblurSettings.relabel_radius; README, "Boundaries from the dense flow"; 6 px as the oracle
-# of boundary_rows.py): bench paper's objects 32.65 / 31.82 -> 33.12 / 32.27 dB (noiseless /
-# noisy), planar unchanged; the training split 33.34 -> 33.39 dB (worst -1.60, noisy fine
-# stripes), then the test split 31.40 -> 31.45 dB
-# (results/calibrate_defaults_{train,test}_320x240_relabel2.md). 0 is the paper's.
+# of boundary_rows.py; by pipeline.motion.RELABEL_MARGIN since stop 35): bench paper's objects
+# 32.65 / 31.82 -> 33.11 / 32.27 dB (noiseless / noisy), planar unchanged; the training split
+# 33.34 -> 33.43 dB (worst -0.23), then the test split 31.40 -> 31.49 dB (worst -0.26)
+# (results/calibrate_defaults_train_320x240_relabel3.md, ..._test_320x240_relabel3_grid.md).
+# 0 is the paper's.
 RELABEL_RADIUS = 6
 # The other view's blurred frame as a second data term (alpha chosen from the view's own):
 # train split (40 scenes, 320x240) +0.44 / +0.27 dB over the single observation (true motion /

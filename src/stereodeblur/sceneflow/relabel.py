@@ -12,22 +12,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.homography import homography, motion_in_view
+from ..geometry.plane import plane_in_view
 from ..geometry.rigid import se3_exp
 from .model import SceneFlow
 
 
 def flow_homographies(sceneflow: SceneFlow) -> np.ndarray:
     """Per segment, the homography ``(L, 3, 3)`` that takes a reference pixel showing its
-    plane to where its motion moves it: ``K (R + t' n_v^T) K^-1`` with the plane ``n_v`` and
-    the translation ``t' = R c + T - c`` in the reference view's camera (centre ``c``)."""
+    plane to where its motion moves it at the next frame (``H_t_from_ref`` of
+    :mod:`~stereodeblur.geometry.homography`, in the scene flow's view)."""
     camera = sceneflow.camera
     c = camera.center(sceneflow.view)
-    n = sceneflow.normals
-    n_v = n / (1.0 - n @ c)[:, None]
     motion = se3_exp(sceneflow.twists)
-    R, T = motion[:, :3, :3], motion[:, :3, 3]
-    shift = R @ c + T - c
-    return camera.K @ (R + shift[:, :, None] * n_v[:, None, :]) @ camera.K_inv
+    R, T = motion_in_view(motion[:, :3, :3], motion[:, :3, 3], c)
+    n = np.stack([plane_in_view(normal, c) for normal in sceneflow.normals])
+    return homography(camera.K, R, T, n)
 
 
 def segment_flow(homographies: np.ndarray, x: np.ndarray, y: np.ndarray, segments: np.ndarray):
@@ -74,6 +74,7 @@ def relabel_by_flow(
     own = labels.ravel()
     targets = [(h, np.asarray(f, dtype=np.float64).reshape(-1, 2)) for h, f in targets]
     own_forward = segment_flow(targets[0][0], xs, ys, own)
+    own_length = np.hypot(*own_forward.T)
     best = np.linalg.norm(own_forward - targets[0][1], axis=1)
     for homographies, target in targets[1:]:
         best += np.linalg.norm(segment_flow(homographies, xs, ys, own) - target, axis=1)
@@ -88,9 +89,9 @@ def relabel_by_flow(
             predicted = segment_flow(homographies, xs[index], ys[index], segments)
             total += np.linalg.norm(predicted - target[index], axis=1)
             if k == 0:  # no motion boundary between them: the same surface, no candidate
-                theirs = own_forward[index]
-                longer = np.maximum(np.hypot(*predicted.T), np.hypot(*theirs.T))
-                same = np.hypot(*(predicted - theirs).T) <= np.maximum(jump, relative * longer)
+                longer = np.maximum(np.hypot(*predicted.T), own_length[index])
+                apart = np.hypot(*(predicted - own_forward[index]).T)
+                same = apart <= np.maximum(jump, relative * longer)
                 total[same] = np.inf
         return total
 
