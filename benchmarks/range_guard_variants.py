@@ -7,9 +7,9 @@ stores their motion in ``--work``)::
 
 Each argument is ``SCENE:SOURCE`` (``gt``, ``sceneflow`` or ``initial-flow``, the last with the
 monocular path's settings). Frame 1 (left) is deblurred from the stored motion without the
-guard and with each variant of ``(RANGE_EXCESS, RANGE_WINDOW, RANGE_SHARE, RANGE_AREA)`` in
-``--variants``; the table gives PSNR dB and, in brackets, the share of the pixels the guard
-deblurred with no motion.
+guard and with each variant of ``(RANGE_EXCESS, RANGE_WINDOW, RANGE_SHARE, RANGE_AREA[,
+RANGE_WHOLE])`` in ``--variants`` (without ``RANGE_WHOLE``: 1, never the whole view); the table
+gives PSNR dB and, in brackets, the share of the pixels the guard deblurred with no motion.
 """
 
 from __future__ import annotations
@@ -35,6 +35,10 @@ VARIANTS = (
     (0.05, 15, 0.2, 0.01),
     (0.05, 15, 0.1, 0.01),
     (0.02, 15, 0.2, 0.02),
+    (0.05, 15, 0.2, 0.02, 0.3),
+    (0.05, 15, 0.2, 0.02, 0.2),
+    (0.05, 15, 0.2, 0.02, 0.1),
+    (0.05, 15, 0.2, 0.02, 0.05),
 )
 
 
@@ -58,7 +62,8 @@ def run(name: str, source: str, variants, work: Path) -> list[tuple[float, float
                 constants.RANGE_WINDOW,
                 constants.RANGE_SHARE,
                 constants.RANGE_AREA,
-            ) = variant
+                constants.RANGE_WHOLE,
+            ) = (*variant, 1.0)[:5]
         settings = replace(column.settings(), range_guard=variant is not None)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

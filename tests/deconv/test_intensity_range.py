@@ -29,7 +29,16 @@ def test_a_region_outside_the_range_is_found_and_scattered_pixels_are_not():
 
 
 @pytest.mark.parametrize(
-    "bad", [{"share": 0.0}, {"share": 1.0}, {"excess": -0.1}, {"window": 0}, {"area": 1.0}]
+    "bad",
+    [
+        {"share": 0.0},
+        {"share": 1.0},
+        {"excess": -0.1},
+        {"window": 0},
+        {"area": 1.0},
+        {"whole": 0.0},
+        {"whole": 1.5},
+    ],
 )
 def test_bad_constants_are_refused(bad):
     with pytest.raises(ValueError, match="need"):
@@ -44,3 +53,11 @@ def test_regions_smaller_than_the_area_are_dropped():
     assert found[20:30, 20:30].all() and found[72:76, 72:76].all()
     kept = unexplained_regions(image, **CONSTANTS, area=0.02)
     assert kept[20:30, 20:30].all() and not kept[60:, 60:].any()
+
+
+def test_regions_over_more_than_the_whole_share_take_the_whole_image():
+    image = np.full((100, 100), 0.5)
+    image[10:40, 10:40] = np.where(np.arange(30) % 2, -0.5, 1.5)[None, :]  # 14 % found
+    assert 0.1 < unexplained_regions(image, **CONSTANTS, whole=0.2).mean() < 0.2
+    assert unexplained_regions(image, **CONSTANTS, whole=0.1).all()
+    assert not unexplained_regions(np.full((100, 100), 0.5), **CONSTANTS, whole=0.05).any()

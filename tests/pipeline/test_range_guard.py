@@ -131,3 +131,39 @@ def test_the_alpha_choice_scores_guarded_solutions(tmp_path, monkeypatch):
     for view in ("left", "right"):
         frame = result.frames[view]
         assert frame.unexplained is not None and frame.unexplained[inner].mean() > 0.9
+
+
+def test_a_motion_that_fails_on_much_of_the_frame_is_trusted_nowhere(tmp_path, monkeypatch):
+    """Stripes on the left half, a smooth ramp on the right, the wrong motion everywhere: the
+    guard finds the stripes; covering more than ``RANGE_WHOLE`` of the frame, they take it all."""
+    from stereodeblur import settings as constants
+
+    scene, _ = _stripes(tmp_path / "stripes")
+    w, h = SIZE
+    half = np.array(scene.read_frame("left", 1))
+    half[:, w // 2 :] = np.linspace(0.3, 0.7, w - w // 2)[None, :, None]
+    info = CameraInfo(CAMERA, Exposure(20.0, 0.04), "linear")
+    writer = SceneWriter(tmp_path / "half", info)
+    for i in range(3):
+        for view in ("left", "right"):
+            writer.write_frame(view, i, half)
+    scene = open_scene(tmp_path / "half")
+    settings = DeblurSettings(
+        kernels="displacement",
+        motion_source="initial-flow",
+        alpha=1e-3,
+        boundary_weights="none",
+        observations="single",
+        num_irls=2,
+        num_cg=10,
+        num_samples=16,
+    )
+    found = {}
+    for whole in (1.0, constants.RANGE_WHOLE):
+        monkeypatch.setattr(constants, "RANGE_WHOLE", whole)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = deblur_frame(scene, 1, settings=settings, motion=_across_the_stripes(scene))
+        found[whole] = result.unexplained
+    assert 0.2 < found[1.0].mean() < 0.8 and not found[1.0][:, -8:].any()
+    assert found[constants.RANGE_WHOLE].all()

@@ -96,10 +96,17 @@ def test_scene_lists_follow_the_split(runner):
         ("family", 1),
     ]
     assert runner.scene_list("test", 2, ("street",)) == [("street", 1000), ("street", 1001)]
+    assert runner.scene_list("test", 3, ("family", "street"), skip=40) == [
+        ("family", 1020),
+        ("street", 1020),
+        ("family", 1021),
+    ]
     args = runner.parse([])
     assert args.split == "train" and args.output.endswith("calibrate_defaults_train_320x240.md")
     with pytest.raises(SystemExit):
         runner.parse(["--kinds", "forest"])
+    with pytest.raises(SystemExit):
+        runner.parse(["--skip", "3"])  # not a multiple of the two kinds
 
 
 def test_monocular_check_needs_every_semi_real_scene(runner):

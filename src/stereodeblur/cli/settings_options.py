@@ -29,7 +29,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from ..settings import ALPHA_MAX, ALPHA_RULES
+from ..settings import ALPHA_MAX, ALPHA_RULES, RANGE_WHOLE
 from ..settings import ITERATIONS_RANGE as ITERATIONS
 from ..settings import RELABEL_RANGE as RELABEL
 from ..settings import SAMPLES_RANGE as SAMPLES
@@ -168,7 +168,8 @@ def _options() -> tuple[SettingOption, ...]:
             "range_guard",
             "--range-guard",
             "deblur with no motion where the estimate leaves [0, 1] over a whole region, which "
-            "the motion cannot explain (default: on; the paper has none)",
+            "the motion cannot explain, and everywhere if such regions cover "
+            f"{RANGE_WHOLE * 100:g} %% of the frame (default: on; the paper has none)",
             switch=True,
         ),
     )

@@ -5,7 +5,9 @@ explain the blurred frame with a sharp estimate far outside that range over a wh
 the operator is wrong there: e.g. a motion aliased on a fine periodic texture, whose blur
 runs across the stripes that the blurred frame still shows (README, "The range guard").
 :func:`unexplained_regions` finds such regions; the pipeline deblurs them with no motion
-instead (``DeblurSettings.range_guard``).
+instead (``DeblurSettings.range_guard``). Where they cover much of the frame, the motion failed
+on a whole surface and is not trusted in the rest of it either: the frame is then deblurred
+with no motion everywhere.
 """
 
 from __future__ import annotations
@@ -22,15 +24,24 @@ def range_excess(image: np.ndarray) -> np.ndarray:
 
 
 def unexplained_regions(
-    image: np.ndarray, *, excess: float, window: int, share: float, area: float = 0.0
+    image: np.ndarray,
+    *,
+    excess: float,
+    window: int,
+    share: float,
+    area: float = 0.0,
+    whole: float = 1.0,
 ) -> np.ndarray:
     """Bool ``(H, W)``: pixels whose ``window`` x ``window`` neighbourhood has more than
     ``share`` of its pixels more than ``excess`` outside [0, 1] in the sharp estimate
-    ``image`` (not clipped), in connected regions of at least ``area`` of the image."""
-    if not 0 < share < 1 or excess < 0 or window < 1 or not 0 <= area < 1:
+    ``image`` (not clipped), in connected regions of at least ``area`` of the image; every
+    pixel where those regions cover more than ``whole`` of it (a motion that fails on that
+    much of the frame is not trusted in the rest: its errors that stay in range are
+    not found)."""
+    if not 0 < share < 1 or excess < 0 or window < 1 or not 0 <= area < 1 or not 0 < whole <= 1:
         raise ValueError(
-            f"need 0 < share < 1, excess >= 0, window >= 1, 0 <= area < 1: "
-            f"{share, excess, window, area}"
+            f"need 0 < share < 1, excess >= 0, window >= 1, 0 <= area < 1, 0 < whole <= 1: "
+            f"{share, excess, window, area, whole}"
         )
     outside = (range_excess(image) > excess).astype(np.float32)
     found = ndimage.uniform_filter(outside, size=window, mode="nearest") > share
@@ -40,4 +51,6 @@ def unexplained_regions(
         large = sizes >= area * found.size
         large[0] = False
         found = large[labels]
+    if found.mean() > whole:
+        found[...] = True
     return found

@@ -260,6 +260,7 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
         window=constants.RANGE_WINDOW,
         share=constants.RANGE_SHARE,
         area=constants.RANGE_AREA,
+        whole=constants.RANGE_WHOLE,
     )
     if not unexplained.any():
         return result, None
