@@ -12,6 +12,16 @@ from stereodeblur.pipeline import DeblurSettings, FrameMotion, deblur_frame, nei
 SIZE = (48, 40)  # width, height
 PERIOD = 4.0
 CAMERA = StereoCamera([[50.0, 0, SIZE[0] / 2], [0, 50.0, SIZE[1] / 2], [0, 0, 1]], 0.1)
+FLOW_SETTINGS = {
+    "kernels": "displacement",
+    "motion_source": "initial-flow",
+    "alpha": 1e-3,
+    "boundary_weights": "none",
+    "observations": "single",
+    "num_irls": 2,
+    "num_cg": 10,
+    "num_samples": 16,
+}
 
 
 def _stripes(root):
@@ -45,17 +55,7 @@ def _across_the_stripes(scene):
 @pytest.mark.parametrize("guard", [True, False])
 def test_a_motion_that_cannot_have_made_the_frame_leaves_it_as_it_is(tmp_path, guard):
     scene, sharp = _stripes(tmp_path / "scene")
-    settings = DeblurSettings(
-        kernels="displacement",
-        motion_source="initial-flow",
-        alpha=1e-3,
-        boundary_weights="none",
-        observations="single",
-        num_irls=2,
-        num_cg=10,
-        num_samples=16,
-        range_guard=guard,
-    )
+    settings = DeblurSettings(**FLOW_SETTINGS, range_guard=guard)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = deblur_frame(scene, 1, settings=settings, motion=_across_the_stripes(scene))
@@ -148,16 +148,7 @@ def test_a_motion_that_fails_on_much_of_the_frame_is_trusted_nowhere(tmp_path, m
         for view in ("left", "right"):
             writer.write_frame(view, i, half)
     scene = open_scene(tmp_path / "half")
-    settings = DeblurSettings(
-        kernels="displacement",
-        motion_source="initial-flow",
-        alpha=1e-3,
-        boundary_weights="none",
-        observations="single",
-        num_irls=2,
-        num_cg=10,
-        num_samples=16,
-    )
+    settings = DeblurSettings(**FLOW_SETTINGS)
     found = {}
     for whole in (1.0, constants.RANGE_WHOLE):
         monkeypatch.setattr(constants, "RANGE_WHOLE", whole)
