@@ -190,8 +190,10 @@ def range_guard_signature(settings) -> str:
     """The range guard's constants where ``settings`` use it, else '' (for result caches)."""
     if not settings.range_guard:
         return ""
-    constants = f"{RANGE_EXCESS:g}/{RANGE_WINDOW}/{RANGE_SHARE:g}/{RANGE_AREA:g}"
-    return f" range guard {constants}/{RANGE_WHOLE:g}"
+    return (
+        f" range guard {RANGE_EXCESS:g}/{RANGE_WINDOW}/{RANGE_SHARE:g}/{RANGE_AREA:g}"
+        f"/{RANGE_WHOLE:g}"
+    )
 
 
 # Accepted ranges (inclusive), checked before any memory is spent. One sample is the centre

@@ -167,9 +167,8 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "range_guard",
             "--range-guard",
-            "deblur with no motion where the estimate leaves [0, 1] over a whole region, which "
-            "the motion cannot explain, and everywhere if such regions cover "
-            f"{RANGE_WHOLE * 100:g} %% of the frame (default: on; the paper has none)",
+            "deblur with no motion where the estimate leaves [0, 1] over a region, and everywhere "
+            f"if over {RANGE_WHOLE * 100:g} %% of the frame (default: on; the paper has none)",
             switch=True,
         ),
     )

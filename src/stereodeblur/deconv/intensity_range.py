@@ -35,9 +35,7 @@ def unexplained_regions(
     """Bool ``(H, W)``: pixels whose ``window`` x ``window`` neighbourhood has more than
     ``share`` of its pixels more than ``excess`` outside [0, 1] in the sharp estimate
     ``image`` (not clipped), in connected regions of at least ``area`` of the image; every
-    pixel where those regions cover more than ``whole`` of it (a motion that fails on that
-    much of the frame is not trusted in the rest: its errors that stay in range are
-    not found)."""
+    pixel where those regions cover more than ``whole`` of it."""
     if not 0 < share < 1 or excess < 0 or window < 1 or not 0 <= area < 1 or not 0 < whole <= 1:
         raise ValueError(
             f"need 0 < share < 1, excess >= 0, window >= 1, 0 <= area < 1, 0 < whole <= 1: "
