@@ -83,7 +83,8 @@ def held_out(d: dict, *, keep: str = "0.9") -> int:
         errors.append(at_auto if i == len(GRID) else costs[i])
         if searched("held-out", errors):
             break
-    return indices[choose(errors, "held-out")]
+    alphas = [auto if i == len(GRID) else GRID[i] for i in indices[: len(errors)]]
+    return indices[choose(errors, "held-out", alphas)]
 
 
 RULES = {

@@ -24,6 +24,8 @@ from stereodeblur.settings import (
     CROSS_VIEW_KEEP,
     HELD_OUT_MIN_WEIGHT,
     HELD_OUT_NOISE_RATIO,
+    HELD_OUT_TIE,
+    PAPER_ALPHA,
 )
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
@@ -118,6 +120,19 @@ def test_the_choice_is_one_step_above_the_best_predictor_within_the_grid():
     assert choose([3.0, 2.0, 1.0, 2.0, 3.0, 4.0]) == 3
     assert choose([5.0, 4.0, 3.0, 2.0, 1.5, 1.0]) == 5
     assert choose([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]) == 1
+
+
+def test_held_out_takes_the_tied_predictor_nearest_the_papers_alpha():
+    alphas = (2e-5, 1e-4, 3e-4, 1e-3, 3e-3)
+    close = 1.0 + 0.5 * HELD_OUT_TIE
+    assert choose([1.0, 0.5, 0.4, 0.3, 0.2], "held-out", alphas) == 4  # a clear minimum
+    assert choose([1.0, close, 2.0, 3.0, 4.0], "held-out", alphas) == 1  # tied, nearer 1e-3
+    assert choose([2.0, 1.0, 1.0, close, 2.0], "held-out", alphas) == 3  # 1e-3 itself
+    assert choose([2.0, 2.0, 2.0, 1.0, close], "held-out", alphas) == 3
+    low = 1.0 + 2 * HELD_OUT_TIE
+    assert choose([1.0, low, low, low, low], "held-out", alphas) == 0  # not tied: the best
+    # equally far from the paper's alpha in log alpha: the larger
+    assert choose([1.0, 1.0], "held-out", (PAPER_ALPHA / 2, PAPER_ALPHA * 2)) == 1
 
 
 @pytest.fixture(scope="module")
@@ -266,6 +281,7 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     grid = tuple(auto.alpha * k for k in (2, 4, 8, 16, 32))  # five candidates above 'auto'
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
     errors = iter([3.0, 2.0, 2.5, 1.0, 0.5, 0.1])  # a later, lower minimum is not searched
+    assert 2.5 > (1 + HELD_OUT_TIE) * 2.0
     calls = []
 
     def scripted(image, other, *, border):
@@ -276,6 +292,32 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert len(calls) == 3 and chosen.alpha == grid[0]
+
+
+def test_held_out_searches_a_flat_error_curve_and_takes_the_alpha_nearest_the_papers(
+    scene, monkeypatch
+):
+    from stereodeblur.pipeline import alpha as alpha_module
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
+    auto = deblur_stereo_frame(
+        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
+    ).frames["left"]
+    grid = tuple(auto.alpha * k for k in (2, 4, 8, 16))
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
+    monkeypatch.setattr(alpha_module, "PAPER_ALPHA", grid[2])
+    tie = 1.0 + 0.5 * HELD_OUT_TIE
+    errors = iter([1.0, tie, 0.995, tie, 2.0])  # within the tie up to the paper's alpha
+    calls = []
+
+    def scripted(image, other, *, border):
+        calls.append(1)
+        return next(errors)
+
+    monkeypatch.setattr(frame_module, "prediction_error", scripted)
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    assert len(calls) == 5 and chosen.alpha == grid[2]
 
 
 def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkeypatch):

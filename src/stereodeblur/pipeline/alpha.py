@@ -12,7 +12,9 @@ see (occlusions, the image edge) give the largest errors, so only the smallest
 prediction is made in the blurred domain, where the blur hides part of the estimate's error
 (the noise it averages away, the detail it removes), so on its own it often picks too little
 regularisation for noisy frames. ``'held-out'`` therefore keeps the best predictor among
-alphas no smaller than the noise rule's, raised by the motion's trust; ``'cross-view'`` takes
+alphas no smaller than the noise rule's, raised by the motion's trust, and among predictors
+within :data:`~stereodeblur.settings.HELD_OUT_TIE` of the best (a flat error curve, which cannot
+tell them apart) the alpha nearest the paper's; ``'cross-view'`` takes
 :data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
 whole grid (``benchmarks/study_alpha_choice.py``).
 
@@ -46,18 +48,20 @@ from ..settings import (
     CROSS_VIEW_STEP,
     HELD_OUT_MIN_WEIGHT,
     HELD_OUT_NOISE_RATIO,
+    HELD_OUT_TIE,
+    PAPER_ALPHA,
 )
 
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 6
+RULES_VERSION = 7
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results: 6 since stop 31 (every candidate range-guarded before it is
-scored), 5 since stop 29 (the noise gate below the floor), 1 before (2 to 4 were candidates
-of stops 28 and 29, not adopted)."""
-TRUE_MOTION_RULES_VERSION = 7
-"""The same with the true motion: 7 since stop 33 (:func:`true_motion_choice`)."""
+cached benchmark results: 7 since stop 37 (ties broken towards the paper's alpha), 6 since
+stop 31 (every candidate range-guarded before it is scored), 5 since stop 29 (the noise gate
+below the floor), 1 before (2 to 4 were candidates of stops 28 and 29, not adopted)."""
+TRUE_MOTION_RULES_VERSION = 8
+"""The same with the true motion: 8 since stop 37, 7 since stop 33 (:func:`true_motion_choice`)."""
 
 
 def rules_version(settings) -> int | None:
@@ -168,18 +172,26 @@ def candidates(rule: str, floor: float) -> tuple[float, ...]:
     return CROSS_VIEW_ALPHAS
 
 
+def tied(errors) -> list[int]:
+    """Indices of the prediction errors within :data:`HELD_OUT_TIE` of the least."""
+    least = min(errors)
+    return [k for k, error in enumerate(errors) if error <= (1.0 + HELD_OUT_TIE) * least]
+
+
 def searched(rule: str, errors) -> bool:
     """Whether ``rule`` needs no further candidate after these prediction errors:
-    ``'held-out'`` stops once the error rises (on the 40 training scenes every error curve
-    had one minimum)."""
-    return rule == "held-out" and len(errors) > 1 and errors[-1] >= errors[-2]
+    ``'held-out'`` stops once an error is more than :data:`HELD_OUT_TIE` above the least."""
+    return rule == "held-out" and len(errors) > 1 and len(errors) - 1 not in tied(errors)
 
 
-def choose(errors, rule: str = "cross-view") -> int:
-    """Index of the chosen alpha among the candidates solved: for ``'held-out'`` the best
-    predictor, for ``'cross-view'`` :data:`CROSS_VIEW_STEP` above it, within the grid."""
-    best = int(np.argmin(errors))
-    return best if rule == "held-out" else min(best + CROSS_VIEW_STEP, len(errors) - 1)
+def choose(errors, rule: str = "cross-view", alphas=()) -> int:
+    """Index of the chosen alpha among the candidates solved (``alphas``): for
+    ``'held-out'`` the one nearest the paper's alpha (in log alpha; the larger on a tie)
+    among the predictors :func:`tied` with the best, for ``'cross-view'``
+    :data:`CROSS_VIEW_STEP` above the best predictor, within the grid."""
+    if rule == "held-out":
+        return min(tied(errors), key=lambda k: (abs(np.log(alphas[k] / PAPER_ALPHA)), -k))
+    return min(int(np.argmin(errors)) + CROSS_VIEW_STEP, len(errors) - 1)
 
 
 def observed_error(image: np.ndarray, observation: Observation, *, border: int) -> float:

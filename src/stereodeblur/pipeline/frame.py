@@ -341,7 +341,7 @@ def _alpha_choice_solve(
         errors.append(score(runs[-1].image))
         if searched(rule, errors):
             break
-    best = choose(errors, rule)
+    best = choose(errors, rule, [run.terms.alpha for run in runs])
     chosen = runs[best]
     if rule == "held-out" and best == 0 and other.observation is not None:
         gated = [observed_error(chosen.image, other.observation, border=border)]
