@@ -120,8 +120,8 @@ HELD_OUT_MIN_WEIGHT = 0.5
 # 'held-out' takes the alpha nearest PAPER_ALPHA among predictors within this share of the best
 # (a flat error curve). Train split, 40 scenes at 320x240, from recorded error curves: mean gap
 # to the best grid alpha 0.32 / 0.36 -> 0.25 / 0.33 dB (true motion / scene flow), no scene
-# worse; 0.02 and 0.05 gained as much on average but lost 1.2-1.8 dB on two scenes
-# (README, issue 12 section; results/held_out_tie_train_320x240.md).
+# more than 0.27 dB worse; 0.01-0.05 gained as much on average but lost 1.2-1.8 dB on two
+# scenes (README, issue 12 section; results/held_out_tie_train_320x240.md).
 HELD_OUT_TIE = 0.005
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene;
 # 'gated' over 'adaptive': 40 test scenes at 320x240 (benchmarks/results/
