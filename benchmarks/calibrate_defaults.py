@@ -5,7 +5,7 @@ Run from the repository root::
     python benchmarks/calibrate_defaults.py --scenes 3                       # smoke run, train
     python benchmarks/calibrate_defaults.py --scenes 50 --size 640x480 --jobs 2
     python benchmarks/calibrate_defaults.py --split test --scenes 40 --size 320x240
-    python benchmarks/calibrate_defaults.py --split test --scenes 40 --skip 40  # unseen ones
+    python benchmarks/calibrate_defaults.py --split test --scenes 38 --skip 42  # never looked at
 
 Scenes: the seeded randomised family (:mod:`stereodeblur.synth.family`) and the semi-real
 street scenes (:mod:`stereodeblur.synth.street`), alternating (``--kinds``); scene ``j`` of
