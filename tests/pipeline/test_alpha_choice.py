@@ -17,6 +17,7 @@ from stereodeblur.pipeline.alpha import (
     choose,
     observed_error,
     prediction_error,
+    searched,
     warp_to_other,
 )
 from stereodeblur.settings import (
@@ -24,6 +25,7 @@ from stereodeblur.settings import (
     CROSS_VIEW_KEEP,
     HELD_OUT_MIN_WEIGHT,
     HELD_OUT_NOISE_RATIO,
+    HELD_OUT_STOP,
     HELD_OUT_TIE,
     PAPER_ALPHA,
 )
@@ -135,6 +137,26 @@ def test_held_out_takes_the_tied_predictor_nearest_the_papers_alpha():
     assert choose([1.0, 1.0], "held-out", (PAPER_ALPHA / 2, PAPER_ALPHA * 2)) == 1
 
 
+def test_held_out_searches_past_a_bump_and_stops_at_a_rise():
+    bump, rise = 1.0 + 0.5 * HELD_OUT_STOP, 1.0 + 2 * HELD_OUT_STOP
+    assert HELD_OUT_TIE < 0.5 * HELD_OUT_STOP
+    assert not searched("held-out", [1.0])
+    assert not searched("held-out", [1.0, bump])  # family_1032's 7.6 % bump
+    assert not searched("held-out", [1.0, bump, 0.5])
+    assert searched("held-out", [1.0, rise])
+    assert searched("held-out", [1.0, bump, 0.5, 0.5 * rise])
+    assert not searched("cross-view", [1.0, rise])
+
+
+def _searched_as_held_out(errors, count):
+    """Whether ``errors`` is what 'held-out' scores on ``count`` candidates: each but the last
+    within the stop share of the least so far, the last past it unless all were solved."""
+    assert 2 <= len(errors) <= count
+    for k in range(1, len(errors) - 1):
+        assert errors[k] <= (1 + HELD_OUT_STOP) * min(errors[:k])
+    assert len(errors) == count or errors[-1] > (1 + HELD_OUT_STOP) * min(errors)
+
+
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
     rendered = make_object_scene("squares", size=(64, 48), num_samples=8)
@@ -198,11 +220,8 @@ def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(scene, 
         scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha="auto")
     ).frames["left"]
     candidates = [auto.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > auto.alpha)]
-    # in increasing order while the error falls: every one solved, or one past the minimum
-    assert 2 <= len(errors) <= len(candidates)
-    assert all(b < a for a, b in zip(errors[:-2], errors[1:-1], strict=True))
-    assert len(errors) == len(candidates) or errors[-1] >= errors[-2]
-    assert chosen.alpha == candidates[int(np.argmin(errors))]
+    _searched_as_held_out(errors, len(candidates))
+    assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
     fixed = DeblurSettings(**FAST, motion_source=source, alpha=chosen.alpha)
     expected = deblur_stereo_frame(scene, 1, settings=fixed).frames["left"]
     np.testing.assert_array_equal(chosen.image, expected.image)
@@ -281,7 +300,7 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     grid = tuple(auto.alpha * k for k in (2, 4, 8, 16, 32))  # five candidates above 'auto'
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
     errors = iter([3.0, 2.0, 2.5, 1.0, 0.5, 0.1])  # a later, lower minimum is not searched
-    assert 2.5 > (1 + HELD_OUT_TIE) * 2.0
+    assert 2.5 > (1 + HELD_OUT_STOP) * 2.0
     calls = []
 
     def scripted(image, other, *, border):
@@ -292,6 +311,76 @@ def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
     settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert len(calls) == 3 and chosen.alpha == grid[0]
+
+
+def test_held_out_searches_past_a_bump_to_a_later_minimum(scene, monkeypatch):
+    from stereodeblur.pipeline import alpha as alpha_module
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
+    auto = deblur_stereo_frame(
+        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
+    ).frames["left"]
+    grid = tuple(auto.alpha * k for k in (2, 4, 8, 16))
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
+    bump = 1.0 + 0.5 * HELD_OUT_STOP
+    errors = iter([1.0, bump, 0.5, 0.5 * (1 + 2 * HELD_OUT_STOP), 0.1])
+    calls = []
+
+    def scripted(image, other, *, border):
+        calls.append(1)
+        return next(errors)
+
+    monkeypatch.setattr(frame_module, "prediction_error", scripted)
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    assert len(calls) == 4 and chosen.alpha == grid[1]
+
+
+def _guard_verdicts(monkeypatch, verdicts):
+    """Replace the range guard's regions by ``verdicts`` (True: the whole view, False:
+    none), one per call, in order; returns the list of calls."""
+    from stereodeblur.deconv import intensity_range
+
+    calls = []
+
+    def scripted(image, **kwargs):
+        calls.append(1)
+        return np.full(image.shape[:2], verdicts[len(calls) - 1])
+
+    monkeypatch.setattr(intensity_range, "unexplained_regions", scripted)
+    return calls
+
+
+@pytest.mark.parametrize("above", [False, True])
+def test_a_motion_rejected_at_the_papers_alpha_is_rejected_above_it(scene, monkeypatch, above):
+    from stereodeblur.pipeline import alpha as alpha_module
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
+    auto = deblur_stereo_frame(
+        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
+    ).frames["left"]
+    grid = (auto.alpha * 2, auto.alpha * 4)
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
+    errors = iter([3.0, 2.0, 1.0])  # the largest alpha predicts best
+    monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(errors))
+    if above:  # the floor is above the paper's alpha: one more solve there, not a candidate
+        monkeypatch.setattr(frame_module, "PAPER_ALPHA", auto.alpha / 2)
+        guard = _guard_verdicts(monkeypatch, [True])
+    else:  # the guard rejects the motion at the paper's alpha only
+        monkeypatch.setattr(frame_module, "PAPER_ALPHA", grid[0])
+        guard = _guard_verdicts(monkeypatch, [False, True])
+    with pytest.warns(UserWarning, match="range guard"):
+        chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",))
+    chosen = chosen.frames["left"]
+    assert len(guard) == (1 if above else 2) and next(errors, None) is None
+    assert chosen.alpha == grid[1] and chosen.unexplained.all()
+    _guard_verdicts(monkeypatch, [True])  # a fixed alpha, rejected by its own guard
+    with pytest.warns(UserWarning, match="range guard"):
+        fixed = deblur_stereo_frame(
+            scene, 1, settings=replace(settings, alpha=grid[1]), views=("left",)
+        ).frames["left"]
+    np.testing.assert_array_equal(chosen.image, fixed.image)
 
 
 def test_held_out_searches_a_flat_error_curve_and_takes_the_alpha_nearest_the_papers(
@@ -390,9 +479,7 @@ def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rul
     noise = alpha_from_sigma(estimate_noise_sigma(chosen.blurred))
     assert noise < auto.alpha  # the trust raised 'auto'; the true motion's choice starts below
     candidates = [noise, *(a for a in CROSS_VIEW_ALPHAS if a > noise)]
-    assert 2 <= len(errors) <= len(candidates)
-    assert all(b < a for a, b in zip(errors[:-2], errors[1:-1], strict=True))
-    assert len(errors) == len(candidates) or errors[-1] >= errors[-2]
-    assert chosen.alpha == candidates[int(np.argmin(errors))]
+    _searched_as_held_out(errors, len(candidates))
+    assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
     fixed = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha=chosen.alpha))
     np.testing.assert_array_equal(chosen.image, fixed.frames["left"].image)

@@ -19,7 +19,7 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import CROSS_VIEW_ALPHAS, DeblurSettings
+from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
 from .alpha import (
     OtherView,
     below_floor,
@@ -227,10 +227,17 @@ def deblur_view(
     )
 
 
-def _guarded_solve(blurred, operator, terms, settings, weights, observations, progress):
+def _guarded_solve(
+    blurred, operator, terms, settings, weights, observations, progress, rejected=None
+):
     """``(result, unexplained)``: :func:`solve` with ``operator``'s operator, then, with
     ``settings.range_guard``, :func:`_range_guard` (``unexplained`` None where it did not
-    act)."""
+    act). ``rejected``: a region the guard has already taken from the motion (at another
+    alpha), solved with no motion at once."""
+    if rejected is not None:
+        return _without_motion_solve(
+            blurred, operator, terms, settings, weights, observations, rejected, progress
+        ), rejected
     result = solve(
         blurred,
         operator.operator,
@@ -251,7 +258,6 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
     no motion there, data weight 1 and the further observations that see it dropped;
     ``(result, None)`` where there is no such region."""
     from .. import settings as constants  # read at call time: the variants study sets them
-    from ..blur.operator import without_motion
     from ..deconv.intensity_range import unexplained_regions
 
     unexplained = unexplained_regions(
@@ -264,12 +270,25 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
     )
     if not unexplained.any():
         return result, None
+    result = _without_motion_solve(
+        blurred, operator, terms, settings, weights, observations, unexplained, progress
+    )
+    return result, unexplained
+
+
+def _without_motion_solve(
+    blurred, operator, terms, settings, weights, observations, unexplained, progress
+):
+    """:func:`solve` with no motion in ``unexplained``, data weight 1 and the further
+    observations that see it dropped there."""
+    from ..blur.operator import without_motion
+
     report(progress, f"range guard: {unexplained.mean():.1%} of the pixels with no motion")
-    update = copy.deepcopy(terms.update)  # used by the first solve: start its steps afresh
+    update = copy.deepcopy(terms.update)  # may have been used by a solve: start afresh
     if update is not None:
         update.history.clear()
     start = terms.weights if weights is None else weights
-    result = solve(
+    return solve(
         blurred,
         without_motion(operator.operator, unexplained),
         replace(terms, update=update),
@@ -278,7 +297,6 @@ def _range_guard(blurred, operator, terms, settings, weights, observations, resu
         observations=tuple(without_pixels(o, unexplained) for o in observations),
         progress=progress,
     )
-    return result, unexplained
 
 
 def _choice_settings(settings: DeblurSettings) -> DeblurSettings:
@@ -321,14 +339,25 @@ def _alpha_choice_solve(
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
 
-    def run(alpha) -> _Candidate:
-        report(progress, f"alpha {alpha:g}")
-        terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
-        result, unexplained = _guarded_solve(blurred, operator, terms, fixed, weights, (), progress)
-        return _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
+    solved = {}
+
+    def run(alpha, rejected=None) -> _Candidate:
+        key = (alpha, rejected is not None)
+        if key not in solved:
+            report(progress, f"alpha {alpha:g}")
+            terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
+            result, unexplained = _guarded_solve(
+                blurred, operator, terms, fixed, weights, (), progress, rejected
+            )
+            solved[key] = _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
+        return solved[key]
 
     observed = true_motion_choice(settings) and other.observation is not None
     floor = alpha_from_sigma(base.noise_sigma) if observed else base.alpha
+    # An estimated motion the guard rejects over the whole view at the paper's alpha is
+    # rejected at every larger alpha, where the prior can hide its failure.
+    judged = settings.range_guard and not observed
+    rejected = rejection(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
 
     def score(image) -> float:
         if observed:
@@ -337,7 +366,9 @@ def _alpha_choice_solve(
 
     runs, errors = [], []
     for alpha in candidates(rule, floor):
-        runs.append(run(alpha))
+        runs.append(run(alpha, rejected if alpha > PAPER_ALPHA else None))
+        if judged and alpha <= PAPER_ALPHA:
+            rejected = rejection(runs[-1].unexplained)
         errors.append(score(runs[-1].image))
         if searched(rule, errors):
             break
@@ -356,9 +387,21 @@ def _alpha_choice_solve(
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
         result, unexplained = _guarded_solve(
-            blurred, operator, terms, fixed, weights, observations, progress
+            blurred,
+            operator,
+            terms,
+            fixed,
+            weights,
+            observations,
+            progress,
+            rejected if terms.alpha > PAPER_ALPHA else None,
         )
     return terms, result, unexplained
+
+
+def rejection(unexplained: np.ndarray | None) -> np.ndarray | None:
+    """``unexplained`` if the range guard took the whole view from the motion, else None."""
+    return unexplained if unexplained is not None and unexplained.all() else None
 
 
 def needs_stereo_pass(settings: DeblurSettings) -> bool:
