@@ -330,7 +330,9 @@ def _alpha_choice_solve(
     ``observations``, solve once more
     with them at that alpha (the other view is then held out of the choice even where it is
     observed). Every solution is range-guarded (:func:`_guarded_solve`) before it is scored,
-    so that the choice judges what the view's result would be. ``base``: the data terms at
+    so that the choice judges what the view's result would be; with an estimated motion the
+    guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
+    larger candidate where it took the whole view. ``base``: the data terms at
     :func:`_choice_settings`, if already computed. Returns the data terms, the result and
     the region the guard deblurred with no motion (or None)."""
     rule = settings.alpha
@@ -357,7 +359,7 @@ def _alpha_choice_solve(
     # An estimated motion the guard rejects over the whole view at the paper's alpha is
     # rejected at every larger alpha, where the prior can hide its failure.
     judged = settings.range_guard and not observed
-    rejected = rejection(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
+    rejected = _whole_view(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
 
     def score(image) -> float:
         if observed:
@@ -368,7 +370,7 @@ def _alpha_choice_solve(
     for alpha in candidates(rule, floor):
         runs.append(run(alpha, rejected if alpha > PAPER_ALPHA else None))
         if judged and alpha <= PAPER_ALPHA:
-            rejected = rejection(runs[-1].unexplained)
+            rejected = _whole_view(runs[-1].unexplained)
         errors.append(score(runs[-1].image))
         if searched(rule, errors):
             break
@@ -399,7 +401,7 @@ def _alpha_choice_solve(
     return terms, result, unexplained
 
 
-def rejection(unexplained: np.ndarray | None) -> np.ndarray | None:
+def _whole_view(unexplained: np.ndarray | None) -> np.ndarray | None:
     """``unexplained`` if the range guard took the whole view from the motion, else None."""
     return unexplained if unexplained is not None and unexplained.all() else None
 
