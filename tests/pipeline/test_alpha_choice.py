@@ -290,30 +290,10 @@ def test_cross_view_chooses_as_without_the_observed_other_view(scene):
         assert both.frames[view].observations == ("other-view",)
 
 
-def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
-    from stereodeblur.pipeline import alpha as alpha_module
-    from stereodeblur.pipeline import frame as frame_module
-
-    auto = deblur_stereo_frame(
-        scene, 1, settings=DeblurSettings(**FAST, motion_source="sceneflow", alpha="auto")
-    ).frames["left"]
-    grid = tuple(auto.alpha * k for k in (2, 4, 8, 16, 32))  # five candidates above 'auto'
-    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
-    errors = iter([3.0, 2.0, 2.5, 1.0, 0.5, 0.1])  # a later, lower minimum is not searched
-    assert 2.5 > (1 + HELD_OUT_STOP) * 2.0
-    calls = []
-
-    def scripted(image, other, *, border):
-        calls.append(1)
-        return next(errors)
-
-    monkeypatch.setattr(frame_module, "prediction_error", scripted)
-    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
-    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    assert len(calls) == 3 and chosen.alpha == grid[0]
-
-
-def test_held_out_searches_past_a_bump_to_a_later_minimum(scene, monkeypatch):
+def _scripted_held_out(scene, monkeypatch, factors, errors, paper=None):
+    """``'held-out'`` on the left view with the grid at ``factors`` times ``'auto'``'s alpha and
+    the prediction errors ``errors`` in turn (and the paper's alpha at grid step ``paper``);
+    returns the number of candidates scored, the chosen alpha and the grid."""
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
@@ -321,11 +301,11 @@ def test_held_out_searches_past_a_bump_to_a_later_minimum(scene, monkeypatch):
     auto = deblur_stereo_frame(
         scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
     ).frames["left"]
-    grid = tuple(auto.alpha * k for k in (2, 4, 8, 16))
+    grid = tuple(auto.alpha * k for k in factors)
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
-    bump = 1.0 + 0.5 * HELD_OUT_STOP
-    errors = iter([1.0, bump, 0.5, 0.5 * (1 + 2 * HELD_OUT_STOP), 0.1])
-    calls = []
+    if paper is not None:
+        monkeypatch.setattr(alpha_module, "PAPER_ALPHA", grid[paper])
+    errors, calls = iter(errors), []
 
     def scripted(image, other, *, border):
         calls.append(1)
@@ -333,7 +313,21 @@ def test_held_out_searches_past_a_bump_to_a_later_minimum(scene, monkeypatch):
 
     monkeypatch.setattr(frame_module, "prediction_error", scripted)
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    assert len(calls) == 4 and chosen.alpha == grid[1]
+    return len(calls), chosen.alpha, grid
+
+
+def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
+    errors = [3.0, 2.0, 2.5, 1.0, 0.5, 0.1]  # a later, lower minimum is not searched
+    assert 2.5 > (1 + HELD_OUT_STOP) * 2.0
+    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 8, 16, 32), errors)
+    assert calls == 3 and alpha == grid[0]
+
+
+def test_held_out_searches_past_a_bump_to_a_later_minimum(scene, monkeypatch):
+    bump = 1.0 + 0.5 * HELD_OUT_STOP
+    errors = [1.0, bump, 0.5, 0.5 * (1 + 2 * HELD_OUT_STOP), 0.1]
+    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 8, 16), errors)
+    assert calls == 4 and alpha == grid[1]
 
 
 def _guard_verdicts(monkeypatch, verdicts):
@@ -386,27 +380,10 @@ def test_a_motion_rejected_at_the_papers_alpha_is_rejected_above_it(scene, monke
 def test_held_out_searches_a_flat_error_curve_and_takes_the_alpha_nearest_the_papers(
     scene, monkeypatch
 ):
-    from stereodeblur.pipeline import alpha as alpha_module
-    from stereodeblur.pipeline import frame as frame_module
-
-    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
-    auto = deblur_stereo_frame(
-        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
-    ).frames["left"]
-    grid = tuple(auto.alpha * k for k in (2, 4, 8, 16))
-    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
-    monkeypatch.setattr(alpha_module, "PAPER_ALPHA", grid[2])
     tie, least = 1.0 + 0.5 * HELD_OUT_TIE, 1.0 - 0.2 * HELD_OUT_TIE
-    errors = iter([1.0, tie, least, tie, 2.0])  # within the tie up to the paper's alpha
-    calls = []
-
-    def scripted(image, other, *, border):
-        calls.append(1)
-        return next(errors)
-
-    monkeypatch.setattr(frame_module, "prediction_error", scripted)
-    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    assert len(calls) == 5 and chosen.alpha == grid[2]
+    errors = [1.0, tie, least, tie, 2.0]  # within the tie up to the paper's alpha
+    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 8, 16), errors, paper=2)
+    assert calls == 5 and alpha == grid[2]
 
 
 def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkeypatch):
