@@ -68,15 +68,15 @@ def padded_motion(motion, margin: int):
 def band_psnrs(image, truth, border: int) -> list[float]:
     """PSNR over the scored frame, then in each band of :data:`BANDS` (the first from
     ``border``)."""
-    error = (np.clip(image, 0.0, 1.0) - truth) ** 2
-    error = error.mean(axis=-1) if error.ndim == 3 else error
-    H, W = error.shape
+    from stereodeblur.evaluation.metrics import masked_mse
+
+    H, W = truth.shape[:2]
     rows, cols = np.mgrid[0:H, 0:W]
     distance = np.minimum.reduce([rows, cols, H - 1 - rows, W - 1 - cols])
     out = []
     for low, high in ((border, None), (border, BANDS[0][0]), *BANDS):
         inside = (distance >= low) & (distance < (high or H + W))
-        out.append(float(10 * np.log10(1.0 / error[inside].mean())))
+        out.append(float(10 * np.log10(1.0 / masked_mse(image, truth, inside))))
     return out
 
 

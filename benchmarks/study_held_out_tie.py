@@ -51,7 +51,7 @@ def record_curve(scene, source: str, cache: Path) -> dict:
     truth = scene.read_gt_sharp("left", protocol.FRAME)
     border = protocol.border_of(truth.shape[1])
     curve, last = [], {}
-    solve, searched = frame._guarded_solve, frame.searched
+    solve, searched = frame.guarded_solve, frame.searched
     predicted, observed = frame.prediction_error, frame.observed_error
 
     def guarded(blurred, operator, terms, *args, **kwargs):
@@ -69,11 +69,11 @@ def record_curve(scene, source: str, cache: Path) -> dict:
 
     motion, _, _ = cached_motion(scene, source, protocol.unmoved(source), cache)
     try:
-        frame._guarded_solve, frame.searched = guarded, lambda rule, errors: False
+        frame.guarded_solve, frame.searched = guarded, lambda rule, errors: False
         frame.prediction_error, frame.observed_error = scored(predicted), scored(observed)
         result = protocol.run_column(scene, protocol.Column("default", source), motion, truth)
     finally:
-        frame._guarded_solve, frame.searched = solve, searched
+        frame.guarded_solve, frame.searched = solve, searched
         frame.prediction_error, frame.observed_error = predicted, observed
     upwards = [curve[0]]
     for entry in curve[1:]:  # the candidates upwards; the gate's errors below the floor follow

@@ -155,9 +155,9 @@ def _spy(monkeypatch, module, function: str, keyword: str) -> list:
 def test_the_anchor_is_used_only_without_dense_flow_rows(scene, monkeypatch):
     import dataclasses
 
-    from stereodeblur.pipeline import frame
+    from stereodeblur.pipeline import deconvolve
 
-    anchors = _spy(monkeypatch, frame, "deblur_irls", "anchor")
+    anchors = _spy(monkeypatch, deconvolve, "deblur_irls", "anchor")
     settings = DeblurSettings(**{**FAST, "motion_source": "sceneflow"}, boundary_weights="adaptive")
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     hybrid = deblur_frame(scene, 1, settings=settings, motion=motion)
@@ -295,9 +295,9 @@ def test_gated_takes_the_dense_rows_only_where_the_dense_flow_predicts_clearly_b
 
 @pytest.mark.parametrize("source", ["gt", "sceneflow"])
 def test_gated_never_anchors_and_keeps_the_outside_weights(scene, monkeypatch, source):
-    from stereodeblur.pipeline import frame
+    from stereodeblur.pipeline import deconvolve
 
-    anchors = _spy(monkeypatch, frame, "deblur_irls", "anchor")
+    anchors = _spy(monkeypatch, deconvolve, "deblur_irls", "anchor")
     settings = DeblurSettings(**{**FAST, "motion_source": source}, boundary_weights="gated")
     motion = frame_motion(scene, 1, "left", settings, scene.read_frame("left", 1))
     result = deblur_frame(scene, 1, settings=settings, motion=motion)

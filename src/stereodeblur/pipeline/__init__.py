@@ -37,6 +37,7 @@ from ..settings import (
     PAPER_ALPHA,
     DeblurSettings,
 )
+from .deconvolve import solve
 from .frame import (
     FrameResult,
     StereoFrameResult,
@@ -44,7 +45,6 @@ from .frame import (
     deblur_frame,
     deblur_stereo_frame,
     deblur_view,
-    solve,
 )
 from .motion import (
     FrameMotion,

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from ..deconv.irls import DeblurResult, deblur_irls
+from ..deconv.irls import DeblurResult
 from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
@@ -31,12 +31,12 @@ from .alpha import (
     searched,
     true_motion_choice,
 )
+from .deconvolve import guarded_solve
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import (
     NamedObservation,
     other_view_observation,
     view_observations,
-    without_pixels,
 )
 from .operator import view_operator
 from .weights import DataTerms, data_terms, gate_trusts
@@ -105,40 +105,6 @@ class StereoFrameResult:
     timings: dict = field(default_factory=dict)
 
 
-def solve(
-    blurred: np.ndarray,
-    operator,
-    terms: DataTerms,
-    settings: DeblurSettings,
-    *,
-    weights: np.ndarray | None = None,
-    observations=(),
-    progress: ProgressCallback | None = None,
-) -> DeblurResult:
-    """Eq. 6 by IRLS (:func:`~stereodeblur.deconv.irls.deblur_irls`) with ``terms``.
-
-    ``weights`` replaces ``terms.weights`` as the initial data weights; ``observations``
-    (:class:`~.observations.NamedObservation`) are further data terms, weighted by their
-    residual and summed with the view's own at the same alpha; ``progress`` gets
-    ``Progress('IRLS', done, total)`` after every IRLS iteration.
-    """
-    from ..settings import OBSERVATION_ROBUST_SCALE
-
-    return deblur_irls(
-        blurred,
-        operator,
-        weights=terms.weights if weights is None else weights,
-        alpha=terms.alpha,
-        num_irls=settings.num_irls,
-        num_cg=settings.num_cg,
-        update_weights=terms.update,
-        anchor=terms.anchor,
-        observations=[o.observation for o in observations],
-        robust_scale=OBSERVATION_ROBUST_SCALE if observations else None,
-        progress=progress,
-    )
-
-
 def build_view_operator(window: FrameWindow, motion: FrameMotion, settings: DeblurSettings):
     """:func:`~.operator.view_operator` of ``motion``, gated by the trusts measured on
     ``window`` with ``boundary_weights='gated'``."""
@@ -201,7 +167,7 @@ def deblur_view(
         )
     else:
         terms = terms or data_terms(scene, window, view, operator, settings)
-        result, unexplained = _guarded_solve(
+        result, unexplained = guarded_solve(
             blurred, operator, terms, settings, weights, observations, progress
         )
     if unexplained is not None:
@@ -224,78 +190,6 @@ def deblur_view(
         terms.trust,
         tuple(o.name for o in observations),
         unexplained,
-    )
-
-
-def _guarded_solve(
-    blurred, operator, terms, settings, weights, observations, progress, rejected=None
-):
-    """``(result, unexplained)``: :func:`solve` with ``operator``'s operator, then, with
-    ``settings.range_guard``, :func:`_range_guard` (``unexplained`` None where it did not
-    act). ``rejected``: a region the guard has already taken from the motion (at another
-    alpha), solved with no motion at once."""
-    if rejected is not None:
-        return _without_motion_solve(
-            blurred, operator, terms, settings, weights, observations, rejected, progress
-        ), rejected
-    result = solve(
-        blurred,
-        operator.operator,
-        terms,
-        settings,
-        weights=weights,
-        observations=observations,
-        progress=progress,
-    )
-    if not settings.range_guard:
-        return result, None
-    return _range_guard(blurred, operator, terms, settings, weights, observations, result, progress)
-
-
-def _range_guard(blurred, operator, terms, settings, weights, observations, result, progress):
-    """``(result, unexplained)``: where ``result`` leaves [0, 1] over a whole region
-    (:func:`~stereodeblur.deconv.intensity_range.unexplained_regions`), solved once more with
-    no motion there, data weight 1 and the further observations that see it dropped;
-    ``(result, None)`` where there is no such region."""
-    from .. import settings as constants  # read at call time: the variants study sets them
-    from ..deconv.intensity_range import unexplained_regions
-
-    unexplained = unexplained_regions(
-        result.image,
-        excess=constants.RANGE_EXCESS,
-        window=constants.RANGE_WINDOW,
-        share=constants.RANGE_SHARE,
-        area=constants.RANGE_AREA,
-        whole=constants.RANGE_WHOLE,
-    )
-    if not unexplained.any():
-        return result, None
-    result = _without_motion_solve(
-        blurred, operator, terms, settings, weights, observations, unexplained, progress
-    )
-    return result, unexplained
-
-
-def _without_motion_solve(
-    blurred, operator, terms, settings, weights, observations, unexplained, progress
-):
-    """:func:`solve` with no motion in ``unexplained``, data weight 1 and the further
-    observations that see it dropped there."""
-    from ..blur.operator import without_motion
-
-    report(progress, f"range guard: {unexplained.mean():.1%} of the pixels with no motion")
-    update = copy.deepcopy(terms.update)  # may have been used by a solve: start afresh
-    if update is not None:
-        update.history.clear()
-    start = terms.weights if weights is None else weights
-    return solve(
-        blurred,
-        without_motion(operator.operator, unexplained),
-        replace(terms, update=update),
-        settings,
-        weights=np.where(unexplained, 1.0, start).astype(np.float32),
-        observations=tuple(without_pixels(o, unexplained) for o in observations),
-        progress=progress,
     )
 
 
@@ -327,10 +221,10 @@ def _alpha_choice_solve(
     :func:`.alpha.searched`, :func:`.alpha.choose`; below the floor only through the noise
     gate, :func:`.alpha.below_floor`; with the true motion from the noise rule's alpha up,
     scored by the other view's observation, :func:`.alpha.true_motion_choice`); with
-    ``observations``, solve once more
-    with them at that alpha (the other view is then held out of the choice even where it is
-    observed). Every solution is range-guarded (:func:`_guarded_solve`) before it is scored,
-    so that the choice judges what the view's result would be; with an estimated motion the
+    ``observations``, solve once more with them at that alpha (the other view is then held
+    out of the choice even where it is observed). Every solution is range-guarded
+    (:func:`~.deconvolve.guarded_solve`) before it is scored, so that the choice judges what
+    the view's result would be; with an estimated motion the
     guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
     larger candidate where it took the whole view. ``base``: the data terms at
     :func:`_choice_settings`, if already computed. Returns the data terms, the result and
@@ -348,7 +242,7 @@ def _alpha_choice_solve(
         if key not in solved:
             report(progress, f"alpha {alpha:g}")
             terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
-            result, unexplained = _guarded_solve(
+            result, unexplained = guarded_solve(
                 blurred, operator, terms, fixed, weights, (), progress, rejected
             )
             solved[key] = _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
@@ -388,7 +282,7 @@ def _alpha_choice_solve(
     if observations:
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
-        result, unexplained = _guarded_solve(
+        result, unexplained = guarded_solve(
             blurred,
             operator,
             terms,
