@@ -63,13 +63,17 @@ def watch_parent(parent: int) -> None:
 
 
 def init_worker(threads: int, parent: int) -> None:
-    """Pool worker start: watch the parent, threads before numba loads; interrupts and
-    terminations are the parent's job."""
+    """Pool worker start: watch the parent and use ``threads`` threads; interrupts and
+    terminations are the parent's job.
+
+    numba, numpy and OpenCV are loaded before this runs (unpickling it imports the package),
+    so the thread counts are set through their calls (:func:`_set_threads`), not the
+    environment: a ``NUMBA_NUM_THREADS`` that differs from numba's once its threads run makes
+    every later compilation fail."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     watch_parent(parent)
-    os.environ["NUMBA_NUM_THREADS"] = str(threads)
-    os.environ["OMP_NUM_THREADS"] = str(threads)
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+    _set_threads(threads)
 
 
 def _set_threads(threads: int | None) -> None:
