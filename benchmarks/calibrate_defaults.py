@@ -99,10 +99,7 @@ CANDIDATES = {
     "bilinear": {"interpolation": "bilinear"},
     "no-relabel": {"relabel_radius": 0},
     "relabel-occlusion": {"boundary_flow": False},
-    **{f"anchor-{c:g}": {"short_blur_anchor": c} for c in (0.03, 0.1, 0.3)},
 }
-MONOCULAR_CANDIDATES = {key for key in CANDIDATES if key.startswith("anchor-")}
-"""Candidates that would change the monocular path too: it gets a column with each."""
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
 ``observations`` issue 13's further observations (stop 22, with the noise rule),
@@ -113,7 +110,6 @@ counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`
 ``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
 ``no-relabel`` the estimate's own segment boundaries (the default until stop 34) and
 ``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere;
-``anchor-C`` the anchor to the blurred frame where the blur is short, of strength C (stop 39);
 all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
 they were measured."""
 
@@ -169,12 +165,6 @@ def columns_for(motions, candidates=tuple(CANDIDATES), grid: bool = True) -> lis
             out += [Column(prefix + alpha_key(a), source, overrides | {"alpha": a}) for a in ALPHAS]
     if "sceneflow" in motions:  # the estimated-motion method it competes with
         out.append(Column("monocular", "initial-flow"))
-        # with a candidate that would be its default too, as a fair comparison asks
-        out += [
-            Column(f"monocular-{key}", "initial-flow", dict(overrides))
-            for key, overrides in chosen.items()
-            if key in MONOCULAR_CANDIDATES
-        ]
     return out
 
 
@@ -226,7 +216,7 @@ def _signature(settings, *, rules: bool = True) -> str:
     depend on the alpha) and for the true motion the version of its fit."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
-    text = text.replace(", boundary_flow=True", "").replace(", short_blur_anchor=0.0", "")
+    text = text.replace(", boundary_flow=True", "")
     if relabel_rule(settings) is None:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     else:
@@ -534,16 +524,15 @@ def _streets(rows) -> list[dict]:
 
 def monocular_checks(rows, keys) -> list[tuple[str, bool, str]]:
     """Issue 13's semi-real check of each column of ``keys`` (estimated motion): at least
-    :data:`OVER_MONOCULAR` dB over the monocular path on average and on every street scene
-    (over the monocular path with the same candidate where it would change it too)."""
+    :data:`OVER_MONOCULAR` dB over the monocular path on average and on every street scene."""
     street = _streets(rows)
     if not street:
         return []
     out = []
     for key in keys:
-        mono = f"monocular-{key}" if key in MONOCULAR_CANDIDATES else "monocular"
         gains = [
-            r["columns"][f"sceneflow/{key}"]["psnr"] - r["columns"][f"initial-flow/{mono}"]["psnr"]
+            r["columns"][f"sceneflow/{key}"]["psnr"]
+            - r["columns"]["initial-flow/monocular"]["psnr"]
             for r in street
         ]
         worst = min(range(len(gains)), key=gains.__getitem__)

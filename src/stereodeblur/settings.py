@@ -50,8 +50,6 @@ __all__ = [
     "SEGMENTS_RANGE",
     "RELABEL_RANGE",
     "RELABEL_RADIUS",
-    "DEFAULT_SHORT_BLUR_ANCHOR",
-    "SHORT_BLUR_LENGTH",
     "DeblurSettings",
 ]
 
@@ -138,13 +136,6 @@ HELD_OUT_STOP = 0.1
 # than 0.5 dB below the paper's settings 9 -> 6 / 15 -> 9; bench paper's objects +0.09 / -0.07
 # dB, planar scenes unchanged (benchmarks/results/paper_handlings_640x480.md).
 DEFAULT_BOUNDARY_WEIGHTS = "gated"
-# Strength of the anchor to the blurred frame where the blur is short
-# (DeblurSettings.short_blur_anchor); 0: none (the paper's and the default until stop 39).
-DEFAULT_SHORT_BLUR_ANCHOR = 0.0
-# The anchor fades from its strength at no blur to 0 at this blur length (px): on four test
-# streets and four train scenes (stop 39) 4 and 8 px kept the long blurs' results (-0.08 to
-# +0.12 dB) where a uniform anchor lost up to 7 dB.
-SHORT_BLUR_LENGTH = 8.0
 # 'gated': the dense flow's rows only where its trust beats the scene flow's by this margin
 # (>= 0: the gate then lies within the boundary band, where the trusts are measured).
 # Training scenes, estimated motion: 0.1 and 0.25 alike (boundary_study_train_320x240.md,
@@ -334,13 +325,6 @@ class DeblurSettings:
         the further observations that see them dropped;
         :mod:`stereodeblur.deconv.intensity_range`); every pixel where such regions cover more
         than :data:`RANGE_WHOLE` of the frame. Default on; the paper has no such step.
-    short_blur_anchor : float
-        With ``boundary_weights`` ``'gated'`` or ``'adaptive'``: pull the estimate towards
-        the blurred frame with this weight (relative to the data term's 1) where the blur is
-        short, fading to 0 at :data:`SHORT_BLUR_LENGTH` px of blur
-        (:func:`~stereodeblur.deconv.trust.short_blur_anchor`); there the blurred frame is
-        close to the sharp one, and the pull damps the ringing of the model's error.
-        0: none (the paper's).
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -362,7 +346,6 @@ class DeblurSettings:
     boundary_flow: bool = DEFAULT_BOUNDARY_FLOW
     relabel_radius: int = RELABEL_RADIUS
     range_guard: bool = DEFAULT_RANGE_GUARD
-    short_blur_anchor: float = DEFAULT_SHORT_BLUR_ANCHOR
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -420,14 +403,6 @@ class DeblurSettings:
             raise InputError(f"boundary_flow must be True or False, got {self.boundary_flow!r}")
         if not isinstance(self.range_guard, bool):
             raise InputError(f"range_guard must be True or False, got {self.range_guard!r}")
-        anchor = self.short_blur_anchor
-        if isinstance(anchor, bool) or not (
-            isinstance(anchor, numbers.Real) and math.isfinite(anchor) and 0 <= anchor <= 1
-        ):
-            raise InputError(
-                f"short_blur_anchor must be in [0, 1], got {anchor!r}",
-                parameter="short_blur_anchor",
-            )
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(
                 f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"

@@ -26,12 +26,6 @@ def test_every_bench_column_is_reachable_from_the_command_line(column):
     assert _parse(*arguments_for(settings)) == settings
 
 
-def test_short_blur_anchor_option_round_trips():
-    settings = _parse("--short-blur-anchor", "0.1")
-    assert settings == DeblurSettings(short_blur_anchor=0.1)
-    assert _parse(*arguments_for(settings)) == settings
-
-
 def test_interpolation_option_round_trips():
     settings = _parse("--interpolation", "cubic")
     assert settings == DeblurSettings(interpolation="cubic")
@@ -56,7 +50,6 @@ def test_bench_paper_takes_the_same_options():
         ("--alpha", "0", ["--alpha", "(0, 1]"]),
         ("--alpha", "nan", ["--alpha", "(0, 1]"]),
         ("--segments", "0", ["--segments", "1..100000"]),
-        ("--short-blur-anchor", "2", ["--short-blur-anchor", "[0, 1]", "2"]),
         ("--workers", "0", ["--workers", "1..1024"]),
         ("--exposure", "-1", ["--exposure", "> 0"]),
     ],

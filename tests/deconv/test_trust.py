@@ -10,13 +10,7 @@ from skimage import data, transform
 from stereodeblur.blur.operator import SparseBlur
 from stereodeblur.deconv import deblur_irls
 from stereodeblur.deconv.noise import auto_alpha
-from stereodeblur.deconv.trust import (
-    OUTSIDE_WEIGHT,
-    leaves_view,
-    motion_trust,
-    short_blur_anchor,
-    trust_anchor,
-)
+from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view, motion_trust, trust_anchor
 from stereodeblur.errors import InputError
 from stereodeblur.evaluation.metrics import psnr
 
@@ -88,23 +82,6 @@ def test_anchor_values():
     np.testing.assert_allclose(
         trust_anchor(np.array([[0.0, 0.5, 1.0]]), strength=0.2), [[0.2, 0.1, 0.0]]
     )
-
-
-def test_the_short_blur_anchor_fades_with_the_longer_blur_of_the_two_flows():
-    forward = np.zeros((1, 5, 2))
-    forward[0, :, 0] = [0.0, 2.5, 5.0, 10.0, np.nan]
-    backward = np.zeros((1, 5, 2))
-    backward[0, 1, 1] = -7.5  # longer than the forward flow there: it counts
-    beta = short_blur_anchor(forward, backward, 0.8, 0.2, length=8.0)
-    assert beta.dtype == np.float32
-    # blur lengths 0, 6, 4, 8 px and 0 (an unknown flow is no blur)
-    np.testing.assert_allclose(beta, [[0.2, 0.05, 0.1, 0.0, 0.2]], rtol=1e-6)
-    assert not short_blur_anchor(forward, backward, 0.8, 0.0).any()
-    alone = short_blur_anchor(forward, None, 0.8, 0.2, length=8.0)
-    np.testing.assert_allclose(alone, [[0.2, 0.15, 0.1, 0.0, 0.2]], rtol=1e-6)
-    for strength, length in ((-0.1, 8.0), (np.nan, 8.0), (0.1, 0.0)):
-        with pytest.raises(InputError):
-            short_blur_anchor(forward, backward, 0.8, strength, length=length)
 
 
 def moving_disc(sigma, seed=0, step=10, duty=0.8):

@@ -47,10 +47,6 @@ def test_num_segments_overrides_the_estimators():
         ("num_segments", 10**6, r"in 1\.\.100000"),
         ("alpha", 1e300, r"alpha must be 'held-out', 'auto', 'cross-view' or in \(0, 1\]"),
         ("sceneflow", {"num_segments": 3}, "SceneFlowSettings"),
-        ("short_blur_anchor", -0.1, r"short_blur_anchor must be in \[0, 1\], got -0.1"),
-        ("short_blur_anchor", 1.5, "short_blur_anchor"),
-        ("short_blur_anchor", float("nan"), "short_blur_anchor"),
-        ("short_blur_anchor", True, "short_blur_anchor"),
     ],
 )
 def test_bad_settings_name_the_field(field, value, message):

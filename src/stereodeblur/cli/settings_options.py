@@ -18,7 +18,6 @@ types before anything is read or allocated:
   for images in [0, 1]; at 1 the prior already outweighs the data term, beyond it the result
   is flat.
 - ``--segments`` in 1..100000 superpixels.
-- ``--short-blur-anchor`` in [0, 1]: the anchor's weight relative to the data term's 1.
 - ``--relabel-radius`` in 0..100 px: past the size of a superpixel the window holds segments of
   far-away surfaces.
 """
@@ -57,17 +56,6 @@ def alpha(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"expected {_RULES} or a number, got {text!r}") from None
     if not 0 < value <= ALPHA_MAX:
         raise argparse.ArgumentTypeError(f"must be {_RULES} or in (0, {ALPHA_MAX:g}], got {text!r}")
-    return value
-
-
-def anchor_strength(text: str) -> float:
-    """Option type of ``--short-blur-anchor``: a number in [0, 1]."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}") from None
-    if not 0 <= value <= 1:
-        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text!r}")
     return value
 
 
@@ -175,16 +163,6 @@ def _options() -> tuple[SettingOption, ...]:
             "%(default)s; 0: the estimate's own segments, as in the paper)",
             type=integer(*RELABEL),
             metavar="N",
-        ),
-        SettingOption(
-            "short_blur_anchor",
-            "--short-blur-anchor",
-            "with gated or adaptive boundaries, pull the estimate towards the blurred frame "
-            "with this weight in [0, 1] where the blur is short, fading to 0 at "
-            f"{s.SHORT_BLUR_LENGTH:g} px of blur (default: %(default)s; 0: none, as in the "
-            "paper)",
-            type=anchor_strength,
-            metavar="W",
         ),
         SettingOption(
             "range_guard",

@@ -280,36 +280,6 @@ def trust_anchor(trust: np.ndarray, *, strength: float = ANCHOR_STRENGTH) -> np.
     return (strength * (1.0 - np.clip(trust, 0.0, 1.0))).astype(np.float32)
 
 
-def short_blur_anchor(
-    flow_forward: np.ndarray,
-    flow_backward: np.ndarray | None,
-    duty_cycle: float,
-    strength: float,
-    *,
-    length: float | None = None,
-) -> np.ndarray:
-    """``beta = strength * max(0, 1 - l / length)`` for ``deblur_irls(anchor=...)``, float32
-    ``(H, W)``: ``l`` the pixel's blur length, the longer of its flows to the neighbouring
-    frames (the forward one alone if ``flow_backward`` is None) times ``duty_cycle``;
-    ``length`` by default :data:`~stereodeblur.settings.SHORT_BLUR_LENGTH`.
-
-    Where the blur is short the blurred frame is near the sharp one; a pull towards it damps
-    the ringing of the blur model's error, which is all alpha has to absorb on a noiseless
-    frame."""
-    from ..settings import SHORT_BLUR_LENGTH
-
-    length = SHORT_BLUR_LENGTH if length is None else length
-    if not (np.isfinite(strength) and strength >= 0 and np.isfinite(length) and length > 0):
-        raise InputError(f"strength must be >= 0 and length > 0, got {strength!r}, {length!r}")
-    lengths = [
-        np.hypot(*np.moveaxis(np.nan_to_num(f), -1, 0))
-        for f in (flow_forward, flow_backward)
-        if f is not None
-    ]
-    blur = duty_cycle * np.maximum.reduce(lengths)
-    return (strength * np.clip(1.0 - blur / length, 0.0, 1.0)).astype(np.float32)
-
-
 def alpha_from_trust(
     trust: np.ndarray, *, share: float = UNTRUSTED_SHARE, alpha: float = PAPER_ALPHA
 ) -> float:

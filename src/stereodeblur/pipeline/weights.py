@@ -205,7 +205,7 @@ def data_terms(
         if sf is not None:
             weights = initial_weights_from_occlusion(sf.occlusion)
     elif settings.boundary_weights in ("adaptive", "gated"):
-        from ..deconv.trust import OUTSIDE_WEIGHT, leaves_view, short_blur_anchor, trust_anchor
+        from ..deconv.trust import OUTSIDE_WEIGHT, leaves_view, trust_anchor
 
         # Pixels whose exposure path leaves the view show content the blur model replaces
         # by the edge pixel's: a small data weight (not an anchor, and not in the trust
@@ -225,11 +225,6 @@ def data_terms(
             trust, alpha_trust = trusts[0], trusts[-1]
         if settings.boundary_weights == "adaptive" and not dense_rows:
             anchor = trust_anchor(trust)
-        if settings.short_blur_anchor > 0:
-            short = short_blur_anchor(
-                motion.flow_forward, motion.flow_backward, duty_cycle, settings.short_blur_anchor
-            )
-            anchor = short if anchor is None else np.maximum(anchor, short)
     if settings.boundary_mask == "gt":
         keep = _gt_mask(scene, view, window.index)
         weights = weights * keep
