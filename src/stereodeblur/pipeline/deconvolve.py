@@ -10,6 +10,7 @@ import numpy as np
 
 from ..deconv.irls import DeblurResult, deblur_irls
 from ..progress import ProgressCallback, report
+from ..settings import OBSERVATION_ROBUST_SCALE
 from .observations import without_pixels
 
 if TYPE_CHECKING:
@@ -34,8 +35,6 @@ def solve(
     residual and summed with the view's own at the same alpha; ``progress`` gets
     ``Progress('IRLS', done, total)`` after every IRLS iteration.
     """
-    from ..settings import OBSERVATION_ROBUST_SCALE
-
     return deblur_irls(
         blurred,
         operator,
@@ -98,23 +97,23 @@ def unexplained(image: np.ndarray) -> np.ndarray | None:
 
 
 def _without_motion_solve(
-    blurred, operator, terms, settings, weights, observations, unexplained, progress
+    blurred, operator, terms, settings, weights, observations, region, progress
 ):
-    """:func:`solve` with no motion in ``unexplained``, data weight 1 and the further
+    """:func:`solve` with no motion in ``region`` (the guard's), data weight 1 and the further
     observations that see it dropped there."""
     from ..blur.operator import without_motion
 
-    report(progress, f"range guard: {unexplained.mean():.1%} of the pixels with no motion")
+    report(progress, f"range guard: {region.mean():.1%} of the pixels with no motion")
     update = copy.deepcopy(terms.update)  # may have been used by a solve: start afresh
     if update is not None:
         update.history.clear()
     start = terms.weights if weights is None else weights
     return solve(
         blurred,
-        without_motion(operator.operator, unexplained),
+        without_motion(operator.operator, region),
         replace(terms, update=update),
         settings,
-        weights=np.where(unexplained, 1.0, start).astype(np.float32),
-        observations=tuple(without_pixels(o, unexplained) for o in observations),
+        weights=np.where(region, 1.0, start).astype(np.float32),
+        observations=tuple(without_pixels(o, region) for o in observations),
         progress=progress,
     )
