@@ -770,16 +770,27 @@ def run_all(function, tasks, jobs: int) -> list:
     that end with this one (a killed run leaves none behind)."""
     if jobs == 1:
         return [function(t) for t in tasks]
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
     import multiprocessing
-
-    from stereodeblur.clip.worker import watch_parent
 
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(
-        jobs, mp_context=context, initializer=watch_parent, initargs=(os.getpid(),)
+        jobs, mp_context=context, initializer=_start_worker, initargs=(os.getpid(),)
     ) as pool:
         return list(pool.map(function, tasks))
+
+
+def _start_worker(parent: int) -> None:
+    """A worker of :func:`run_all`: single-threaded, ending with ``parent``. The threads are
+    set by numba's and OpenCV's calls: a ``NUMBA_NUM_THREADS`` set in this process's
+    environment after numba started its threads would make every later compilation fail."""
+    import cv2
+    import numba
+
+    from stereodeblur.clip.worker import watch_parent
+
+    watch_parent(parent)
+    numba.set_num_threads(1)
+    cv2.setNumThreads(1)
 
 
 def main(argv=None) -> int:

@@ -169,3 +169,44 @@ def test_a_result_is_found_under_another_column_or_archived(runner, tmp_path):
     assert runner._cached_elsewhere(tmp_path, "sceneflow", "other") is None
     assert runner._cached_elsewhere(tmp_path, "gt", "before") is None
     runner._archive(tmp_path / "sceneflow_missing.json")  # nothing to keep
+
+
+_PARENT_COMPILES_AFTER_RUN_ALL = """
+import sys
+import numba
+import numpy as np
+sys.path.insert(0, {folder!r})
+import calibrate_defaults
+
+@numba.njit(parallel=True)
+def total(x):
+    s = 0.0
+    for i in numba.prange(x.size):
+        s += x[i]
+    return s
+
+total(np.ones(8))  # numba's threads run in the parent before the pool
+assert calibrate_defaults.run_all(abs, [-1, -2, -3], 2) == [1, 2, 3]
+
+@numba.njit
+def add_one(x):  # defined after the pool: numba compiles it here
+    return x + 1
+
+print(add_one(1))
+"""
+
+
+def test_the_parent_still_compiles_after_a_parallel_run():
+    """run_all used to set NUMBA_NUM_THREADS=1 in the parent's environment; once numba's
+    threads ran there, every later compilation in the parent failed ("Cannot set
+    NUMBA_NUM_THREADS to a different value once the threads have been launched")."""
+    import os
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    code = _PARENT_COMPILES_AFTER_RUN_ALL.format(folder=str(PATH.parent))
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["2"]
