@@ -181,3 +181,17 @@ def test_unknown_scene_names_are_refused_before_rendering(tmp_path, capsys, comm
     refused(
         capsys, [*argv, "--scenes", "nosuch"], outputs=[out], fragments=["'nosuch'", "--scenes"]
     )
+
+
+@pytest.mark.parametrize("command", ["planar", "sceneflow", "paper"])
+def test_bench_into_a_work_folder_another_run_holds_is_refused(tmp_path, capsys, command):
+    """Two benches into one work folder: the second would delete the first one's
+    half-rendered scenes; it is refused before it touches anything."""
+    from stereodeblur.io.outputs import OutputLock
+
+    work = tmp_path / "work"
+    work.mkdir()
+    with OutputLock(work):
+        argv = ["bench", command, "--work", work]
+        refused(capsys, argv, fragments=["in use by another run", work])
+    assert [p.name for p in work.iterdir()] == [".lock"]

@@ -6,6 +6,9 @@ Parsing only: each runner calls a typed entry point of :mod:`stereodeblur.evalua
 from __future__ import annotations
 
 import argparse
+import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from ..evaluation import paper_bench, planar_bench, sceneflow_bench
 from .base import Parser, add_quiet, add_size, add_sizes, integer, names
@@ -98,19 +101,32 @@ def _add_paper(bench) -> None:
     q.set_defaults(func=run_paper)
 
 
-def _check_work(work: str, command: str) -> None:
-    from ..io.outputs import check_output
+@contextmanager
+def _locked_work(work: str, command: str) -> Iterator[None]:
+    """Hold the checked work folder (created if need be) while the bench runs: a second run
+    into it is refused (InputError) instead of deleting the first one's half-written scenes.
+    A folder created here that the bench left empty (it refused its input) is removed."""
+    from ..io.outputs import LOCK_NAME, OutputLock, check_output, writing_errors
 
-    check_output(work, [], command=command)
+    folder = check_output(work, [], command=command)
+    created = not folder.exists()
+    with writing_errors(folder):
+        folder.mkdir(parents=True, exist_ok=True)
+    try:
+        with OutputLock(folder):
+            yield
+    finally:
+        if created and [p.name for p in folder.iterdir()] == [LOCK_NAME]:
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 def run_planar(args: argparse.Namespace) -> int:
     from ..evaluation.planar_bench import run_planar_bench
 
-    _check_work(args.work, "bench planar")
-    bench = run_planar_bench(
-        args.work, sizes=args.sizes, scenes=args.scenes, progress=progress_printer(args.quiet)
-    )
+    with _locked_work(args.work, "bench planar"):
+        bench = run_planar_bench(
+            args.work, sizes=args.sizes, scenes=args.scenes, progress=progress_printer(args.quiet)
+        )
     print(bench.table)
     print()
     print(bench.summary)
@@ -120,15 +136,15 @@ def run_planar(args: argparse.Namespace) -> int:
 def run_sceneflow(args: argparse.Namespace) -> int:
     from ..evaluation.sceneflow_bench import run_sceneflow_bench
 
-    _check_work(args.work, "bench sceneflow")
-    bench = run_sceneflow_bench(
-        args.work,
-        sizes=args.sizes,
-        scenes=args.scenes,
-        frame=args.frame,
-        motorcycle=not args.no_motorcycle,
-        progress=progress_printer(args.quiet),
-    )
+    with _locked_work(args.work, "bench sceneflow"):
+        bench = run_sceneflow_bench(
+            args.work,
+            sizes=args.sizes,
+            scenes=args.scenes,
+            frame=args.frame,
+            motorcycle=not args.no_motorcycle,
+            progress=progress_printer(args.quiet),
+        )
     print(bench.table)
     return 0
 
@@ -136,17 +152,17 @@ def run_sceneflow(args: argparse.Namespace) -> int:
 def run_paper(args: argparse.Namespace) -> int:
     from ..evaluation.paper_bench import run_paper_bench
 
-    _check_work(args.work, "bench paper")
-    bench = run_paper_bench(
-        args.work,
-        size=args.size,
-        scenes=args.scenes,
-        settings=settings_from_arguments(args),
-        alpha_sweep=args.alpha_sweep,
-        masked=not args.no_masked,
-        render_samples=args.render_samples,
-        command="stereodeblur " + " ".join(args.argv),
-        progress=progress_printer(args.quiet),
-    )
+    with _locked_work(args.work, "bench paper"):
+        bench = run_paper_bench(
+            args.work,
+            size=args.size,
+            scenes=args.scenes,
+            settings=settings_from_arguments(args),
+            alpha_sweep=args.alpha_sweep,
+            masked=not args.no_masked,
+            render_samples=args.render_samples,
+            command="stereodeblur " + " ".join(args.argv),
+            progress=progress_printer(args.quiet),
+        )
     print(bench.text, end="")
     return 0
