@@ -63,6 +63,7 @@ from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
 from stereodeblur.pipeline.motion import relabel_rule
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
+from stereodeblur.sceneflow.settings import SceneFlowSettings
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
 
 ALPHAS = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3)
@@ -99,6 +100,7 @@ CANDIDATES = {
     "bilinear": {"interpolation": "bilinear"},
     "no-relabel": {"relabel_radius": 0},
     "relabel-occlusion": {"boundary_flow": False},
+    "census-0.008": {"sceneflow": SceneFlowSettings(census_threshold=0.008)},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
