@@ -100,7 +100,7 @@ CANDIDATES = {
     "bilinear": {"interpolation": "bilinear"},
     "no-relabel": {"relabel_radius": 0},
     "relabel-occlusion": {"boundary_flow": False},
-    "census-0.008": {"sceneflow": SceneFlowSettings(census_threshold=0.008)},
+    "census-0.004": {"sceneflow": SceneFlowSettings(census_threshold=0.004)},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,

@@ -44,10 +44,11 @@ PAPER_COUNTS = (PAPER_IRLS, PAPER_CG)
 """``--irls 10 --cg 25``: the paper's counts (the default before stop 22), beside the default."""
 
 
-def columns(observations=OBSERVATIONS):
-    """The monocular and initial-flow columns, then ours with each set of ``observations``."""
+def columns(observations=OBSERVATIONS, baselines: bool = True):
+    """The monocular and initial-flow columns (unless not ``baselines``), then ours with each
+    set of ``observations``."""
     base = {c.key: c for c in COLUMNS}
-    out = [base["initial-flow"], base["monocular"]]
+    out = [base["initial-flow"], base["monocular"]] if baselines else []
     for name in observations:
         title = f"ours, {TITLES[name]}"
         out.append(replace(base["ours-full"], key=f"ours-{name}", title=title, observations=name))
@@ -79,6 +80,11 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--no-paper-counts", action="store_true", help="without the 10 x 25 columns"
     )
+    parser.add_argument(
+        "--no-baselines",
+        action="store_true",
+        help="without the initial-flow and monocular columns (no scene flow in them)",
+    )
     parser.add_argument("--output", default=None, help="Markdown (default: print only)")
     args = parser.parse_args(argv)
     observations = tuple(o for o in args.observations.split(",") if o)
@@ -87,7 +93,7 @@ def main(argv=None) -> int:
     size = tuple(int(v) for v in args.size.lower().split("x"))
     folder = Path(args.work) / args.size
     names = args.scenes.split(",") if args.scenes else paper_bench.default_scenes()
-    chosen = columns(observations)
+    chosen = columns(observations, baselines=not args.no_baselines)
     paper = [] if args.no_paper_counts else paper_count_columns()
     start = time.perf_counter()
     paper_bench.render_missing(folder / "scenes", names, size)
