@@ -39,7 +39,7 @@ BETTER = 0.3
 
 
 def parse_variants(text: str) -> dict[str, dict]:
-    """``"a=1,b=2;c=3"`` -> ``{"a=1,b=2": {"a": 1.0, "b": 2.0}, "c=3": {"c": 3.0}}``."""
+    """``"a=1,b=0.5;c=3"`` -> ``{"a=1,b=0.5": {"a": 1, "b": 0.5}, "c=3": {"c": 3}}``."""
     from stereodeblur.sceneflow.settings import SceneFlowSettings
 
     known = SceneFlowSettings.__dataclass_fields__
