@@ -785,14 +785,10 @@ def _start_worker(parent: int) -> None:
     """A worker of :func:`run_all`: single-threaded, ending with ``parent``. The threads are
     set by numba's and OpenCV's calls: a ``NUMBA_NUM_THREADS`` set in this process's
     environment after numba started its threads would make every later compilation fail."""
-    import cv2
-    import numba
-
-    from stereodeblur.clip.worker import watch_parent
+    from stereodeblur.clip.worker import set_threads, watch_parent
 
     watch_parent(parent)
-    numba.set_num_threads(1)
-    cv2.setNumThreads(1)
+    set_threads(1)
 
 
 def main(argv=None) -> int:

@@ -62,6 +62,8 @@ def flow_errors(flow: np.ndarray, truth: np.ndarray, sharp: np.ndarray) -> dict:
     """Mean, textured mean and > 3 px share of the end-point error of ``flow``."""
     from scipy import ndimage
 
+    from stereodeblur.evaluation.metrics import endpoint_error
+
     gray = sharp.mean(axis=-1) if sharp.ndim == 3 else sharp
     weight = ndimage.uniform_filter(np.hypot(ndimage.sobel(gray, 0), ndimage.sobel(gray, 1)), 5)
     endpoint = np.linalg.norm(flow - truth, axis=-1)
@@ -69,7 +71,7 @@ def flow_errors(flow: np.ndarray, truth: np.ndarray, sharp: np.ndarray) -> dict:
     weight = np.where(known, weight, 0.0)
     clipped = np.minimum(np.where(known, endpoint, 0.0), CLIP)
     return {
-        "aep": float(np.nanmean(endpoint)),
+        "aep": endpoint_error(flow, truth),
         "textured": float((weight * clipped).sum() / max(weight.sum(), 1e-12)),
         "over_3px": float(np.nanmean(endpoint > 3.0)),
     }

@@ -12,9 +12,9 @@ from stereodeblur.clip.worker import init_worker
 def _compile_fresh(threads: int) -> tuple[int, int]:
     import numba
 
-    from stereodeblur.clip.worker import _set_threads
+    from stereodeblur.clip.worker import set_threads
 
-    _set_threads(threads)
+    set_threads(threads)
 
     @numba.njit  # defined in the call: numba has no cache of it and compiles it here
     def add_one(x):

@@ -6,7 +6,6 @@ Parsing only: each runner calls a typed entry point of :mod:`stereodeblur.evalua
 from __future__ import annotations
 
 import argparse
-import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -106,18 +105,18 @@ def _locked_work(work: str, command: str) -> Iterator[None]:
     """Hold the checked work folder (created if need be) while the bench runs: a second run
     into it is refused (InputError) instead of deleting the first one's half-written scenes.
     A folder created here that the bench left empty (it refused its input) is removed."""
-    from ..io.outputs import LOCK_NAME, OutputLock, check_output, writing_errors
+    from ..io.outputs import LOCK_NAME, OutputLock, check_output, make_folder
 
     folder = check_output(work, [], command=command)
     created = not folder.exists()
-    with writing_errors(folder):
-        folder.mkdir(parents=True, exist_ok=True)
+    make_folder(folder)
     try:
         with OutputLock(folder):
             yield
     finally:
         if created and [p.name for p in folder.iterdir()] == [LOCK_NAME]:
-            shutil.rmtree(folder, ignore_errors=True)
+            (folder / LOCK_NAME).unlink()
+            folder.rmdir()
 
 
 def run_planar(args: argparse.Namespace) -> int:

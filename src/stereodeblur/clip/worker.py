@@ -67,16 +67,17 @@ def init_worker(threads: int, parent: int) -> None:
     terminations are the parent's job.
 
     numba, numpy and OpenCV are loaded before this runs (unpickling it imports the package),
-    so the thread counts are set through their calls (:func:`_set_threads`), not the
+    so the thread counts are set through their calls (:func:`set_threads`), not the
     environment: a ``NUMBA_NUM_THREADS`` that differs from numba's once its threads run makes
     every later compilation fail."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     watch_parent(parent)
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
-    _set_threads(threads)
+    set_threads(threads)
 
 
-def _set_threads(threads: int | None) -> None:
+def set_threads(threads: int | None) -> None:
+    """Use ``threads`` threads in numba and OpenCV (none given: leave them)."""
     if not threads:
         return
     import cv2
@@ -210,7 +211,7 @@ def process_task(
     try:
         with stderr, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            _set_threads(threads or _dask_threads(host_threads))
+            set_threads(threads or _dask_threads(host_threads))
             source, writer = _open(job)
             results = _deblur_views(source, index, views, job)
             t0 = time.perf_counter()
