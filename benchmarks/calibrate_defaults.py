@@ -186,22 +186,28 @@ def scene_list(split: str, count: int, kinds, skip: int = 0) -> list[tuple[str, 
 
 
 def ensure_scene(kind: str, seed: int, size, work: Path) -> Path:
-    """The rendered scene folder, rendered first if it is not in ``work`` yet."""
+    """The rendered scene folder, rendered first if it is not in ``work`` yet. Another
+    process rendering the same scene into ``work`` is waited for (a lock per scene), not
+    interfered with."""
     import shutil
 
+    from stereodeblur.io.outputs import OutputLock
     from stereodeblur.synth.family import family_scene, spec_json, write_family_scene
     from stereodeblur.synth.street import street_scene
 
     make = family_scene if kind == "family" else street_scene
     spec = make(seed, size=size)
-    root = work / "scenes" / spec.name
+    scenes = work / "scenes"
+    scenes.mkdir(parents=True, exist_ok=True)
+    root = scenes / spec.name
     record = root / "gt" / "family.json"
-    if record.is_file() and record.read_text(encoding="utf-8") != spec_json(spec):
-        _log(f"{spec.name}: the cached scene is stale (another generator version): rendering again")
-        shutil.rmtree(root)
-        shutil.rmtree(work / "results" / spec.name, ignore_errors=True)
-    if not record.is_file():
-        write_family_scene(spec, root)
+    with OutputLock(scenes, name=f".{spec.name}.lock", wait=True):
+        if record.is_file() and record.read_text(encoding="utf-8") != spec_json(spec):
+            _log(f"{spec.name}: the cached scene is stale (another generator version): rendering")
+            shutil.rmtree(root)
+            shutil.rmtree(work / "results" / spec.name, ignore_errors=True)
+        if not record.is_file():
+            write_family_scene(spec, root)
     return root
 
 

@@ -131,3 +131,35 @@ def test_the_paper_columns_keep_the_paper_iteration_counts():
         given = column.settings(DeblurSettings(num_irls=3, num_cg=7))  # --irls 3 --cg 7
         assert (given.num_irls, given.num_cg) == (3, 7), column.key
     assert [c.boundary_mask for c in MASKED_COLUMNS] == ["gt"] * 4
+
+
+def test_two_processes_render_a_shared_bench_scene_once(tmp_path, monkeypatch):
+    """Two benchmark scripts on one work folder (here threads: ``flock`` locks separate opens
+    of one file): the second waits for the first's render and finds both variants written,
+    instead of removing its half-written folder."""
+    import threading
+    import time
+
+    from stereodeblur.synth import objects
+
+    calls = []
+    make = objects.make_object_scene
+
+    def slow_make(name, **kwargs):
+        calls.append(name)
+        time.sleep(0.5)
+        return make(name, **kwargs)
+
+    monkeypatch.setattr(objects, "make_object_scene", slow_make)
+    names = ["squares", "squares" + paper_bench.NOISY_SUFFIX]
+
+    def render():
+        paper_bench.render_missing(tmp_path, names, (32, 24), num_samples=4)
+
+    threads = [threading.Thread(target=render) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert calls == ["squares"]
+    assert all((tmp_path / name / "camera.json").is_file() for name in names)

@@ -172,3 +172,25 @@ def test_output_lock_refuses_a_second_holder(tmp_path):
         assert other.returncode == 2 and "in use by another run" in other.stdout
     other = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True)
     assert other.returncode == 0
+
+
+def test_a_waiting_output_lock_is_granted_when_the_holder_releases(tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    code = (
+        "import sys, time\nfrom stereodeblur.io.outputs import OutputLock\n"
+        "with OutputLock(sys.argv[1], name='.x.lock', wait=True):\n    print(time.time())\n"
+    )
+    with OutputLock(tmp_path, name=".x.lock"):
+        other = subprocess.Popen(
+            [sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True
+        )
+        time.sleep(2.0)  # the other process starts and waits meanwhile
+        assert other.poll() is None
+        released = time.time()
+    out, _ = other.communicate(timeout=60)
+    assert other.returncode == 0 and float(out) >= released
+    with OutputLock(tmp_path):  # another name is another lock
+        pass

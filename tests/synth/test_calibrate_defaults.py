@@ -210,3 +210,38 @@ def test_the_parent_still_compiles_after_a_parallel_run():
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split() == ["2"]
+
+
+def test_two_runs_render_a_shared_scene_once(runner, tmp_path, monkeypatch):
+    """Two processes (here threads: ``flock`` locks separate opens of one file) asking for the
+    same scene: the second waits for the first's render instead of removing its half-written
+    folder, and reuses it."""
+    import threading
+    import time
+
+    from stereodeblur.synth import family
+
+    calls = []
+
+    def slow_write(spec, root):
+        calls.append(spec.name)
+        partial = root.with_name(root.name + ".partial")
+        (partial / "gt").mkdir(parents=True)
+        time.sleep(0.5)
+        (partial / "gt" / "family.json").write_text(family.spec_json(spec), encoding="utf-8")
+        partial.rename(root)
+        return root
+
+    monkeypatch.setattr(family, "write_family_scene", slow_write)
+    roots = []
+
+    def ask():
+        roots.append(runner.ensure_scene("family", 3, (64, 48), tmp_path))
+
+    threads = [threading.Thread(target=ask) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert calls == ["family_0003"] and len(roots) == 2 and roots[0] == roots[1]
+    assert (roots[0] / "gt" / "family.json").is_file()

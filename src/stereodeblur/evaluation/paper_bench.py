@@ -98,19 +98,27 @@ def render_missing(
     num_samples: int = RENDER_SAMPLES,
     progress: ProgressCallback | None = None,
 ) -> None:
-    """Render and write the scenes of ``names`` not yet under ``base`` (both variants at once)."""
+    """Render and write the scenes of ``names`` not yet under ``base`` (both variants at once).
+    Another process rendering the same scene into ``base`` is waited for (a lock per scene)."""
+    from ..io.outputs import OutputLock
     from ..synth.objects import NOISE_SIGMA, add_noise, make_object_scene
     from ..synth.planar import make_planar_scene, write_rendered_scene
 
-    missing = [n for n in names if not (base / n / "camera.json").is_file()]
-    for root in dict.fromkeys(n.removesuffix(NOISY_SUFFIX) for n in missing):
-        report(progress, f"rendering {root} at {size[0]}x{size[1]}")
-        if scene_kind(root) == "object":
-            scene = make_object_scene(root, size=size, num_samples=num_samples)
-        else:
-            scene = make_planar_scene(root, size=size, num_samples=num_samples)
-        for name in (root, root + NOISY_SUFFIX):
-            if name in missing:
+    def missing(name) -> bool:
+        return name in names and not (base / name / "camera.json").is_file()
+
+    base.mkdir(parents=True, exist_ok=True)
+    for root in dict.fromkeys(n.removesuffix(NOISY_SUFFIX) for n in names if missing(n)):
+        with OutputLock(base, name=f".{root}.lock", wait=True):
+            todo = [n for n in (root, root + NOISY_SUFFIX) if missing(n)]
+            if not todo:  # rendered by another process meanwhile
+                continue
+            report(progress, f"rendering {root} at {size[0]}x{size[1]}")
+            if scene_kind(root) == "object":
+                scene = make_object_scene(root, size=size, num_samples=num_samples)
+            else:
+                scene = make_planar_scene(root, size=size, num_samples=num_samples)
+            for name in todo:
                 variant = scene if name == root else add_noise(scene, NOISE_SIGMA)
                 # Written aside and renamed, so that an interrupted run leaves no half scene.
                 partial = base / f".{name}.partial"

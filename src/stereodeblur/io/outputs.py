@@ -227,15 +227,19 @@ def writing_errors(where: str | os.PathLike) -> Iterator[None]:
 
 
 class OutputLock:
-    """``fcntl.flock`` on ``FOLDER/.lock`` held while the ``with`` block runs.
+    """``fcntl.flock`` on ``FOLDER/.lock`` (or ``FOLDER/name``) held while the ``with``
+    block runs.
 
     A second holder (another process) is refused with an InputError at once instead of
-    waiting. The lock file stays (removing it would race with a waiting locker); it is empty.
+    waiting, or with ``wait`` waits for the first to release it (a shared cache whose entries
+    each process makes if missing). The lock file stays (removing it would race with a
+    waiting locker); it is empty.
     """
 
-    def __init__(self, folder: str | os.PathLike):
+    def __init__(self, folder: str | os.PathLike, *, name: str = LOCK_NAME, wait: bool = False):
         self.folder = Path(folder)
-        self.path = self.folder / LOCK_NAME
+        self.path = self.folder / name
+        self.wait = wait
         self._fd: int | None = None
 
     def __enter__(self) -> OutputLock:
@@ -244,7 +248,7 @@ class OutputLock:
         with writing_errors(self.path):
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX if self.wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
             os.close(fd)
             if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
