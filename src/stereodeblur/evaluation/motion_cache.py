@@ -3,7 +3,8 @@
 :func:`cached_motion` stores the estimated scene flow and the initial optical flow of a scene
 in a cache folder and reads them back on later runs (``bench paper``,
 ``benchmarks/calibrate_defaults.py``), so that every column of a scene, in every run, uses
-one motion.
+one motion. Each stored motion has its :func:`motion_signature` beside it; a motion stored with
+other estimator settings (or none, before stop 41) is estimated again.
 """
 
 from __future__ import annotations
@@ -26,17 +27,31 @@ def quiet(function, *args, **kwargs):
     return result, tuple(dict.fromkeys(str(w.message) for w in caught))
 
 
+MOTION_CACHE_VERSION = 1
+"""Version of the stored motions: 1 since stop 41 (the first with a signature)."""
+
+
+def motion_signature(source: str, settings) -> str:
+    """What a stored motion of ``source`` depends on: for the scene flow the estimator's
+    settings and seed (the initial optical flow has no settings)."""
+    signature = f"{source} v{MOTION_CACHE_VERSION}"
+    if source == "sceneflow":
+        signature += f" {settings.estimator!r} seed={settings.seed}"
+    return signature
+
+
 def cached_motion(scene, source: str, settings, cache: Path):
     """The :class:`~stereodeblur.pipeline.FrameMotion` of frame 1 (left) from ``source``,
     a scene flow with its dense flows but its boundaries as estimated (``relabel_radius``
     0: :func:`~stereodeblur.evaluation.paper_bench.deblur_with_motion` moves them).
 
-    Scene flow and initial flow are stored under ``cache`` and read back on later runs;
-    gt motion is recomputed (it is cheap). Returns ``(motion, seconds, warnings)``.
+    Scene flow and initial flow are stored under ``cache`` and read back on later runs if
+    they were made with the same :func:`motion_signature`; gt motion is recomputed (it is
+    cheap). Returns ``(motion, seconds, warnings)``.
     """
     from dataclasses import replace
 
-    from ..io.outputs import atomic_write
+    from ..io.outputs import atomic_write, atomic_write_text
     from ..pipeline import FrameMotion, dense_flow, frame_motion, neighbour_of
     from ..sceneflow.storage import load_sceneflow, save_sceneflow
 
@@ -45,12 +60,18 @@ def cached_motion(scene, source: str, settings, cache: Path):
     settings = replace(settings, motion_source=source, kernels=kernels, relabel_radius=0)
     neighbour = neighbour_of(FRAME, scene.num_frames)
     path = cache / f"{source}.npz"
-    if source == "sceneflow" and path.is_file():
+    record = cache / f"{source}.signature"
+    signature = motion_signature(source, settings)
+    try:
+        stored = record.read_text(encoding="utf-8") == signature and path.is_file()
+    except OSError:
+        stored = False
+    if source == "sceneflow" and stored:
         sf = load_sceneflow(path)
         dense = dense_flow(scene, FRAME, "left", scene.read_frame("left", FRAME))
         motion = FrameMotion(FRAME, neighbour, "left", sf, sf.flow(), sf.reversed().flow(), dense)
         return motion, 0.0, ()
-    if source == "initial-flow" and path.is_file():
+    if source == "initial-flow" and stored:
         with np.load(path) as data:
             backward = data["backward"] if data["backward"].size else None
             motion = FrameMotion(FRAME, neighbour, "left", None, data["forward"], backward)
@@ -67,4 +88,6 @@ def cached_motion(scene, source: str, settings, cache: Path):
         buffer = io.BytesIO()
         np.savez_compressed(buffer, forward=motion.flow_forward, backward=backward)
         atomic_write(path, buffer.getvalue())
+    if source in ("sceneflow", "initial-flow"):
+        atomic_write_text(record, signature)
     return motion, seconds, messages

@@ -1,0 +1,47 @@
+"""The benchmarks' stored motions are read back only for the estimator settings of their making."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from stereodeblur.evaluation.motion_cache import cached_motion, motion_signature
+from stereodeblur.io.scene import open_scene
+from stereodeblur.settings import DeblurSettings
+from stereodeblur.synth.objects import make_object_scene
+from stereodeblur.synth.planar import write_rendered_scene
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    root = tmp_path_factory.mktemp("motion_cache") / "squares"
+    write_rendered_scene(make_object_scene("squares", size=(64, 48), num_samples=8), root)
+    return open_scene(root)
+
+
+def test_a_stored_scene_flow_is_reused_only_with_the_same_estimator(scene, tmp_path):
+    settings = DeblurSettings()
+    first, seconds, _ = cached_motion(scene, "sceneflow", settings, tmp_path)
+    assert seconds > 0 and (tmp_path / "sceneflow.npz").is_file()
+    again, seconds, _ = cached_motion(scene, "sceneflow", settings, tmp_path)
+    assert seconds == 0.0
+    np.testing.assert_array_equal(again.sceneflow.disparity(), first.sceneflow.disparity())
+
+    other = replace(settings, sceneflow=replace(settings.sceneflow, census_threshold=0.004))
+    assert motion_signature("sceneflow", other) != motion_signature("sceneflow", settings)
+    _, seconds, _ = cached_motion(scene, "sceneflow", other, tmp_path)
+    assert seconds > 0  # estimated again, not the stored one of the other band
+    _, seconds, _ = cached_motion(scene, "sceneflow", other, tmp_path)
+    assert seconds == 0.0
+    _, seconds, _ = cached_motion(scene, "sceneflow", settings, tmp_path)
+    assert seconds > 0
+
+
+def test_a_motion_stored_without_a_signature_is_estimated_again(scene, tmp_path):
+    for source in ("sceneflow", "initial-flow"):
+        cached_motion(scene, source, DeblurSettings(), tmp_path)
+        (tmp_path / f"{source}.signature").unlink()  # as stored before signatures
+        _, seconds, _ = cached_motion(scene, source, DeblurSettings(), tmp_path)
+        assert seconds > 0
+        _, seconds, _ = cached_motion(scene, source, DeblurSettings(), tmp_path)
+        assert seconds == 0.0
