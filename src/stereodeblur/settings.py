@@ -19,7 +19,6 @@ __all__ = [
     "ALPHA_MAX",
     "ALPHA_RULES",
     "NOISE_RULES",
-    "CHOICE_CG_SHARE",
     "CROSS_VIEW_ALPHAS",
     "CROSS_VIEW_KEEP",
     "CROSS_VIEW_STEP",
@@ -131,12 +130,6 @@ HELD_OUT_TIE = 0.005
 # and test, 40 scenes each, 320x240) no choice changes, at 3.1 -> 3.5 solves per view
 # (README, issue 12 section).
 HELD_OUT_STOP = 0.1
-# Where the chosen alpha is solved once more with the further observations, the candidates'
-# solves only rank the alphas: they take this share of the CG steps per IRLS iteration (12 of
-# 25). Train split, 20 scenes x 2 motions at 320x240, stop 41: the same choice on 39 of 40
-# (family_0009, true motion, 3e-4 -> 1e-3: +1.19 dB), 0.86-0.88x the time per view; 2 of 4
-# IRLS iterations instead changed 3 choices (-1.37 to +0.12 dB) (README, issue 12 section).
-CHOICE_CG_SHARE = 0.5
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene;
 # 'gated' over 'adaptive': 40 test scenes at 320x240 (benchmarks/results/
 # calibrate_defaults_test_320x240.md) +0.09 / +0.24 dB (true motion / scene flow), scenes more

@@ -60,17 +60,16 @@ from ..settings import (
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 9
+RULES_VERSION = 8
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results: 9 since stop 41 (the candidates with half the CG steps where a
-solve with the further observations follows), 8 since stop 38 (the search goes past small
-bumps; a motion the range guard rejects over the whole view at the paper's alpha is rejected
-above it), 7 since stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
+cached benchmark results: 8 since stop 38 (the search goes past small bumps; a motion the
+range guard rejects over the whole view at the paper's alpha is rejected above it), 7 since
+stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
 range-guarded before it is scored), 5 since stop 29 (the noise gate below the floor), 1 before
 (2 to 4 were candidates of stops 28 and 29, not adopted)."""
-TRUE_MOTION_RULES_VERSION = 10
-"""The same with the true motion: 10 since stop 41, 9 since stop 38, 8 since stop 37, 7 since
-stop 33 (:func:`true_motion_choice`)."""
+TRUE_MOTION_RULES_VERSION = 9
+"""The same with the true motion: 9 since stop 38, 8 since stop 37, 7 since stop 33
+(:func:`true_motion_choice`)."""
 
 
 def rules_version(settings) -> int | None:

@@ -19,7 +19,7 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import CHOICE_CG_SHARE, CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
+from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
 from .alpha import (
     OtherView,
     below_floor,
@@ -203,12 +203,6 @@ def _choice_settings(settings: DeblurSettings) -> DeblurSettings:
     return settings
 
 
-def _trial_settings(settings: DeblurSettings) -> DeblurSettings:
-    """``settings`` with :data:`~stereodeblur.settings.CHOICE_CG_SHARE` of its CG steps: the
-    candidates' solves where the chosen alpha is solved once more (they only rank alphas)."""
-    return replace(settings, num_cg=max(1, int(settings.num_cg * CHOICE_CG_SHARE)))
-
-
 class _Candidate(NamedTuple):
     """One alpha of a choice: its data terms, its (range-guarded) result, the guard's region
     (or None) and the result clipped to [0, 1], which the choice scores."""
@@ -228,8 +222,7 @@ def _alpha_choice_solve(
     gate, :func:`.alpha.below_floor`; with the true motion from the noise rule's alpha up,
     scored by the other view's observation, :func:`.alpha.true_motion_choice`); with
     ``observations``, solve once more with them at that alpha (the other view is then held
-    out of the choice even where it is observed), the candidates then with
-    :func:`_trial_settings`' fewer CG steps. Every solution is range-guarded
+    out of the choice even where it is observed). Every solution is range-guarded
     (:func:`~.deconvolve.guarded_solve`) before it is scored, so that the choice judges what
     the view's result would be; with an estimated motion the
     guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
@@ -238,7 +231,6 @@ def _alpha_choice_solve(
     the region the guard deblurred with no motion (or None)."""
     rule = settings.alpha
     fixed = _choice_settings(settings)
-    trial = _trial_settings(fixed) if observations else fixed
     if base is None:
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
@@ -251,7 +243,7 @@ def _alpha_choice_solve(
             report(progress, f"alpha {alpha:g}")
             terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
             result, unexplained = guarded_solve(
-                blurred, operator, terms, trial, weights, (), progress, rejected
+                blurred, operator, terms, fixed, weights, (), progress, rejected
             )
             solved[key] = _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
         return solved[key]
