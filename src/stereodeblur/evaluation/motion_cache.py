@@ -29,6 +29,8 @@ def quiet(function, *args, **kwargs):
 
 MOTION_CACHE_VERSION = 1
 """Version of the stored motions: 1 since stop 41 (the first with a signature)."""
+STORED_SOURCES = ("sceneflow", "initial-flow")
+"""The motion sources :func:`cached_motion` stores (the true motion is cheap to recompute)."""
 
 
 def motion_signature(source: str, settings) -> str:
@@ -62,10 +64,7 @@ def cached_motion(scene, source: str, settings, cache: Path):
     path = cache / f"{source}.npz"
     record = cache / f"{source}.signature"
     signature = motion_signature(source, settings)
-    try:
-        stored = record.read_text(encoding="utf-8") == signature and path.is_file()
-    except OSError:
-        stored = False
+    stored = source in STORED_SOURCES and path.is_file() and _has_text(record, signature)
     if source == "sceneflow" and stored:
         sf = load_sceneflow(path)
         dense = dense_flow(scene, FRAME, "left", scene.read_frame("left", FRAME))
@@ -88,6 +87,14 @@ def cached_motion(scene, source: str, settings, cache: Path):
         buffer = io.BytesIO()
         np.savez_compressed(buffer, forward=motion.flow_forward, backward=backward)
         atomic_write(path, buffer.getvalue())
-    if source in ("sceneflow", "initial-flow"):
+    if source in STORED_SOURCES:
         atomic_write_text(record, signature)
     return motion, seconds, messages
+
+
+def _has_text(path: Path, text: str) -> bool:
+    """Whether the file ``path`` holds exactly ``text`` (False if it cannot be read)."""
+    try:
+        return path.read_text(encoding="utf-8") == text
+    except OSError:
+        return False
