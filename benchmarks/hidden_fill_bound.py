@@ -168,14 +168,16 @@ def score_rows(results: dict, rows, first=None) -> list[str]:
     return lines
 
 
-def parse(argv=None, description: str = "") -> argparse.Namespace:
+def parse(argv=None, description: str = "", *, jobs: bool = False) -> argparse.Namespace:
     """The bound scripts' options: ``--work`` (bench paper's), ``--size``, ``--scenes``,
-    ``--output``."""
+    ``--output``, and ``--jobs`` where ``jobs``."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
     add_size(parser, (320, 240))
     parser.add_argument("--scenes", default=None, help="comma-separated (default: the objects)")
     parser.add_argument("--output", default=None, help="Markdown (default: print only)")
+    if jobs:
+        parser.add_argument("--jobs", type=int, default=1, help="scenes at once (processes)")
     return parser.parse_args(argv)
 
 
