@@ -95,6 +95,7 @@ CANDIDATES = {
     "observations": {"observations": "all", "alpha": "auto"},
     "single": {"observations": "single"},
     "other-view": {"observations": "other-view"},
+    "all": {"observations": "all"},
     "iterations-10x25": {"num_irls": PAPER_IRLS, "num_cg": PAPER_CG, "alpha": "auto"},
     "cubic": {"interpolation": "cubic"},
     "bilinear": {"interpolation": "bilinear"},
@@ -106,7 +107,8 @@ CANDIDATES = {
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
 ``observations`` issue 13's further observations (stop 22, with the noise rule),
 ``other-view`` the other view's (with 'held-out''s alpha chosen from the view's own frame; the
-default since stop 25) and ``single`` the view's own frame alone (the default until stop 24),
+default since stop 25), ``all`` both views and the neighbouring frames (with 'held-out''s alpha,
+stop 42) and ``single`` the view's own frame alone (the default until stop 24),
 ``iterations-10x25`` the paper's iteration
 counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` and
 ``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
