@@ -173,15 +173,18 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 2
+    from stereodeblur.evaluation.motion_cache import is_stored
     from stereodeblur.evaluation.paper_bench import default_scenes, scene_kind
     from stereodeblur.io.outputs import atomic_write_text
+    from stereodeblur.settings import DeblurSettings
 
     names = [n for n in default_scenes() if scene_kind(n) == "object"]
-    missing = [n for n in names if not (args.work / "cache" / n / "sceneflow.npz").is_file()]
+    settings = DeblurSettings()
+    missing = [n for n in names if not is_stored(args.work / "cache" / n, "sceneflow", settings)]
     if missing:
         print(
-            f"error: {args.work}: no cached scene flow of {', '.join(missing)}; "
-            "run stereodeblur bench paper --work on it first",
+            f"error: {args.work}: no scene flow of {', '.join(missing)} stored with today's "
+            "estimator settings; run stereodeblur bench paper --work on it first",
             file=sys.stderr,
         )
         return 2

@@ -68,13 +68,21 @@ def main(argv=None) -> int:
     except (OSError, ValueError) as error:
         print(f"error: {args.results}: not a results JSON ({error})", file=sys.stderr)
         return 2
+    from stereodeblur.evaluation.motion_cache import is_stored
+    from stereodeblur.settings import DeblurSettings
+
+    settings = DeblurSettings()
     missing = [
         r["scene"]
         for r in records
-        if not (args.work / "results" / r["scene"] / "sceneflow.npz").is_file()
+        if not is_stored(args.work / "results" / r["scene"], "sceneflow", settings)
     ]
     if missing:
-        print(f"error: {args.work}: no stored scene flow of {', '.join(missing)}", file=sys.stderr)
+        print(
+            f"error: {args.work}: no scene flow of {', '.join(missing)} stored with today's "
+            "estimator settings",
+            file=sys.stderr,
+        )
         return 2
     rows = sorted((row(args.work, r) for r in records), key=lambda r: -r["below_true"])
     bad = [r for r in rows if r["aep"] > 1.0]

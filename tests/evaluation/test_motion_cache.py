@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from stereodeblur.evaluation.motion_cache import cached_motion, motion_signature
+from stereodeblur.evaluation.motion_cache import cached_motion, is_stored, motion_signature
 from stereodeblur.io.scene import open_scene
 from stereodeblur.settings import DeblurSettings
 from stereodeblur.synth.objects import make_object_scene
@@ -45,3 +45,13 @@ def test_a_motion_stored_without_a_signature_is_estimated_again(scene, tmp_path)
         assert seconds > 0
         _, seconds, _ = cached_motion(scene, source, DeblurSettings(), tmp_path)
         assert seconds == 0.0
+
+
+def test_is_stored_tells_a_motion_of_other_settings_from_a_current_one(scene, tmp_path):
+    settings = DeblurSettings()
+    other = replace(settings, sceneflow=replace(settings.sceneflow, census_threshold=0.004))
+    assert not is_stored(tmp_path, "sceneflow", settings)
+    cached_motion(scene, "sceneflow", settings, tmp_path)
+    assert is_stored(tmp_path, "sceneflow", settings)
+    assert not is_stored(tmp_path, "sceneflow", other)  # what the benchmark scripts refuse
+    assert not is_stored(tmp_path, "gt", settings)  # never stored

@@ -62,9 +62,7 @@ def cached_motion(scene, source: str, settings, cache: Path):
     settings = replace(settings, motion_source=source, kernels=kernels, relabel_radius=0)
     neighbour = neighbour_of(FRAME, scene.num_frames)
     path = cache / f"{source}.npz"
-    record = cache / f"{source}.signature"
-    signature = motion_signature(source, settings)
-    stored = source in STORED_SOURCES and path.is_file() and _has_text(record, signature)
+    stored = is_stored(cache, source, settings)
     if source == "sceneflow" and stored:
         sf = load_sceneflow(path)
         dense = dense_flow(scene, FRAME, "left", scene.read_frame("left", FRAME))
@@ -88,8 +86,19 @@ def cached_motion(scene, source: str, settings, cache: Path):
         np.savez_compressed(buffer, forward=motion.flow_forward, backward=backward)
         atomic_write(path, buffer.getvalue())
     if source in STORED_SOURCES:
-        atomic_write_text(record, signature)
+        atomic_write_text(cache / f"{source}.signature", motion_signature(source, settings))
     return motion, seconds, messages
+
+
+def is_stored(cache: Path, source: str, settings) -> bool:
+    """Whether ``cache`` holds a motion of ``source`` made with ``settings``
+    (:func:`motion_signature`), which :func:`cached_motion` reads back."""
+    signature = cache / f"{source}.signature"
+    return (
+        source in STORED_SOURCES
+        and (cache / f"{source}.npz").is_file()
+        and _has_text(signature, motion_signature(source, settings))
+    )
 
 
 def _has_text(path: Path, text: str) -> bool:
