@@ -9,13 +9,14 @@ For every scene and motion source, frame 1 of the left view is deblurred with th
 settings, and the choice solves every candidate alpha (no early stop) and records its
 prediction error (:func:`stereodeblur.pipeline.alpha.prediction_error`, or with the true motion
 :func:`~stereodeblur.pipeline.alpha.observed_error`) and PSNR. Each tie share ``t`` then
-replays the choice of :mod:`stereodeblur.pipeline.alpha` with ``HELD_OUT_TIE = t`` on these
-errors (``t = 0``: the best predictor, today's rule before stop 37). A choice is scored with
-the default's own PSNR where it is the recorded one, else with the PSNR of the grid column
-``alpha=A`` of ``calibrate_defaults.py``, else (an alpha off the grid, the noise rule's) with
-the candidate's PSNR corrected by the default's difference to its own candidate. The curves
-are cached under ``--work`` (``results/<scene>/<motion>_curve.json``; delete them after a change
-to the pipeline).
+replays the choice of :mod:`stereodeblur.pipeline.alpha` with a tie share ``t`` on these
+errors (``t = 0``: the best predictor, the rule before stop 37), and (rows "less noise", stop
+42) with ``t`` taken of the least error less the noise's expected part (:func:`noise_part`).
+A choice is scored with the default's own PSNR where it is the recorded one, else with the
+PSNR of the grid column ``alpha=A`` of ``calibrate_defaults.py``, else (an alpha off the grid,
+the noise rule's) with the candidate's PSNR corrected by the default's difference to its own
+candidate. The curves are cached under ``--work`` (``results/<scene>/<motion>_curve.json``;
+delete them after a change to the pipeline).
 Written: ``--output`` (markdown).
 """
 
@@ -36,12 +37,18 @@ import calibrate_defaults as protocol  # noqa: E402
 from stereodeblur.io.outputs import atomic_write_text  # noqa: E402
 
 TIES = (0.0, 0.005, 0.01, 0.02, 0.05)
+VARIANTS = (
+    *((f"{t:g}", t, False) for t in TIES),
+    *((f"{t:g} less noise", t, True) for t in TIES[1:]),
+)
+"""``(label, tie share, of the error less the noise's part)``: the shares replayed."""
 
 
 def record_curve(scene, source: str, cache: Path) -> dict:
     """The default's candidates of frame 1, left view, each ``(alpha, error, psnr)``, and the
     default's alpha and PSNR; cached in ``cache``."""
     import stereodeblur.pipeline.frame as frame
+    from stereodeblur.deconv.noise import estimate_noise_sigma
     from stereodeblur.evaluation.metrics import psnr
     from stereodeblur.evaluation.motion_cache import cached_motion
 
@@ -80,25 +87,48 @@ def record_curve(scene, source: str, cache: Path) -> dict:
         if entry[0] <= upwards[-1][0]:
             break
         upwards.append(entry)
-    out = {"curve": upwards, "alpha": result["alpha"], "psnr": result["psnr"]}
+    blurred = scene.read_frame("left", protocol.FRAME)
+    out = {
+        "curve": upwards,
+        "alpha": result["alpha"],
+        "psnr": result["psnr"],
+        "sigma": estimate_noise_sigma(blurred),
+        "channels": 1 if blurred.ndim == 2 else blurred.shape[2],
+        "observed": source == "gt",
+    }
     atomic_write_text(path, json.dumps(out))
     return out
 
 
-def replay(curve, tie: float) -> int:
-    """Index of the candidate ``'held-out'`` chooses with ``HELD_OUT_TIE = tie``."""
+def noise_part(record: dict) -> float:
+    """The noise's expected share of ``record``'s prediction errors: ``sigma^2`` times the
+    mean of the smallest :data:`~stereodeblur.settings.CROSS_VIEW_KEEP` of a chi-square over the
+    channels (the trimmed error), or ``sigma^2`` for the untrimmed error of the true motion."""
+    from stereodeblur.settings import CROSS_VIEW_KEEP
+
+    if record["observed"]:
+        return record["sigma"] ** 2
+    draws = np.random.default_rng(0).standard_normal((100_000, record["channels"]))
+    squares = np.sort((draws**2).mean(axis=1))
+    return record["sigma"] ** 2 * float(squares[: int(CROSS_VIEW_KEEP * squares.size)].mean())
+
+
+def replay(record: dict, tie: float, less_noise: bool = False) -> int:
+    """Index of the candidate ``'held-out'`` chooses with the tie share ``tie``; where
+    ``less_noise``, the share is of the least error less :func:`noise_part`."""
     from stereodeblur.pipeline import alpha
 
-    saved, alpha.HELD_OUT_TIE = alpha.HELD_OUT_TIE, tie
-    try:
-        errors = []
-        for _, error, _ in curve:
-            errors.append(error)
-            if alpha.searched("held-out", errors):
-                break
-        return alpha.choose(errors, "held-out", [a for a, _, _ in curve])
-    finally:
-        alpha.HELD_OUT_TIE = saved
+    curve = record["curve"]
+    errors = []
+    for _, error, _ in curve:
+        errors.append(error)
+        if alpha.searched("held-out", errors):
+            break
+    least = min(errors)
+    band = tie * max(least - (noise_part(record) if less_noise else 0.0), 0.0)
+    tied = [k for k, error in enumerate(errors) if error - least <= band]
+    alphas = [a for a, _, _ in curve]
+    return min(tied, key=lambda k: (abs(np.log(alphas[k] / alpha.PAPER_ALPHA)), -k))
 
 
 def score(record: dict, index: int, grid: dict) -> float:
@@ -141,7 +171,7 @@ def main(argv=None) -> int:
     from stereodeblur.io.scene import open_scene
 
     work = args.work / args.size
-    rows = {tie: {s: [] for s in protocol.MOTIONS} for tie in TIES}
+    rows = {v[0]: {s: [] for s in protocol.MOTIONS} for v in VARIANTS}
     changes = []
     for kind, seed in protocol.scene_list(args.split, args.scenes, protocol.KINDS, args.skip):
         name = f"{kind}_{seed:04d}"
@@ -152,10 +182,10 @@ def main(argv=None) -> int:
                 record = record_curve(scene, source, work / "results" / name)
             grid, paper = grid_psnr(scene, source, work / "results" / name)
             best = max(grid.values())
-            picks = {tie: replay(record["curve"], tie) for tie in TIES}
-            for tie, index in picks.items():
+            picks = {label: replay(record, tie, less) for label, tie, less in VARIANTS}
+            for label, index in picks.items():
                 value = score(record, index, grid)
-                rows[tie][source].append((best - value, paper - value, name))
+                rows[label][source].append((best - value, paper - value, name))
             if len({record["curve"][i][0] for i in picks.values()}) > 1:
                 changes.append((name, source, record, picks, grid, best))
             print(f"{name} {source}", flush=True)
@@ -169,24 +199,28 @@ def main(argv=None) -> int:
         "worst below the paper |",
         "|---|---|---|---|---|---|",
     ]
-    for tie in TIES:
+    for label, _, _ in VARIANTS:
         for source in protocol.MOTIONS:
-            gaps = rows[tie][source]
+            gaps = rows[label][source]
             worst = max(gaps)
             below = max(gaps, key=lambda g: g[1])
             lines.append(
-                f"| {tie:g} | {source} | {np.mean([g[0] for g in gaps]):+.2f} | "
+                f"| {label} | {source} | {np.mean([g[0] for g in gaps]):+.2f} | "
                 f"{worst[0]:+.2f} ({worst[2]}) | {sum(g[0] > 1.5 for g in gaps)} | "
                 f"{below[1]:+.2f} ({below[2]}) |"
             )
     lines += ["", "## Scenes whose choice depends on the tie share (alpha: PSNR dB)", ""]
-    lines += ["| scene | motion | best grid | " + " | ".join(f"tie {t:g}" for t in TIES) + " |"]
-    lines += ["|---|---|---|" + "---|" * len(TIES)]
+    lines += ["| scene | motion | sigma | best grid | " + " | ".join(v[0] for v in VARIANTS) + " |"]
+    lines += ["|---|---|---|---|" + "---|" * len(VARIANTS)]
     for name, source, record, picks, grid, best in changes:
         cells = [
             f"{record['curve'][i][0]:.2g}: {score(record, i, grid):.2f}" for i in picks.values()
         ]
-        lines.append(f"| {name} | {source} | {best:.2f} | " + " | ".join(cells) + " |")
+        lines.append(
+            f"| {name} | {source} | {record['sigma']:.4f} | {best:.2f} | "
+            + " | ".join(cells)
+            + " |"
+        )
     text = "\n".join(lines) + "\n"
     if args.output:
         atomic_write_text(args.output, text)
