@@ -28,7 +28,6 @@ from stereodeblur.settings import (
     HELD_OUT_STOP,
     HELD_OUT_TIE,
     PAPER_ALPHA,
-    TRUE_MOTION_TIE,
 )
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
@@ -136,14 +135,6 @@ def test_held_out_takes_the_tied_predictor_nearest_the_papers_alpha():
     assert choose([1.0, low, low, low, low], "held-out", alphas) == 0  # not tied: the best
     # equally far from the paper's alpha in log alpha: the larger
     assert choose([1.0, 1.0], "held-out", (PAPER_ALPHA / 2, PAPER_ALPHA * 2)) == 1
-
-
-def test_each_score_has_its_own_tie_share():
-    between = 1.0 + 0.5 * (TRUE_MOTION_TIE + HELD_OUT_TIE)
-    assert TRUE_MOTION_TIE < HELD_OUT_TIE
-    alphas = (PAPER_ALPHA / 10, PAPER_ALPHA)
-    assert choose([1.0, between], "held-out", alphas) == 1  # the scene flow's share: tied
-    assert choose([1.0, between], "held-out", alphas, tie=TRUE_MOTION_TIE) == 0
 
 
 def test_held_out_searches_past_a_bump_and_stops_at_a_rise():
@@ -466,29 +457,6 @@ def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rul
     assert noise < auto.alpha  # the trust raised 'auto'; the true motion's choice starts below
     candidates = [noise, *(a for a in CROSS_VIEW_ALPHAS if a > noise)]
     _searched_as_held_out(errors, len(candidates))
-    picked = choose(errors, "held-out", candidates, tie=TRUE_MOTION_TIE)
-    assert chosen.alpha == candidates[picked]
+    assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
     fixed = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha=chosen.alpha))
     np.testing.assert_array_equal(chosen.image, fixed.frames["left"].image)
-
-
-@pytest.mark.parametrize(("source", "tied"), [("gt", False), ("sceneflow", True)])
-def test_the_true_motion_breaks_ties_by_its_own_share(scene, monkeypatch, source, tied):
-    from stereodeblur.deconv.noise import estimate_noise_sigma
-    from stereodeblur.pipeline import alpha as alpha_module
-    from stereodeblur.pipeline import frame as frame_module
-
-    settings = DeblurSettings(**FAST, motion_source=source, alpha="held-out")
-    auto = deblur_stereo_frame(
-        scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
-    ).frames["left"]
-    floor = alpha_from_sigma(estimate_noise_sigma(auto.blurred)) if source == "gt" else auto.alpha
-    grid = (floor * 2, floor * 4)
-    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
-    monkeypatch.setattr(alpha_module, "PAPER_ALPHA", grid[1])
-    errors = iter([2.0, 1.0, 1.0 + 0.5 * (TRUE_MOTION_TIE + HELD_OUT_TIE)])
-    score = "observed_error" if source == "gt" else "prediction_error"
-    monkeypatch.setattr(frame_module, score, lambda *args, border: next(errors))
-    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    assert next(errors, None) is None
-    assert chosen.alpha == grid[1 if tied else 0]

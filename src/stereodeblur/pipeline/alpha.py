@@ -14,8 +14,7 @@ prediction is made in the blurred domain, where the blur hides part of the estim
 regularisation for noisy frames. ``'held-out'`` therefore keeps the best predictor among
 alphas no smaller than the noise rule's, raised by the motion's trust, and among predictors
 within :data:`~stereodeblur.settings.HELD_OUT_TIE` of the best (a flat error curve, which cannot
-tell them apart; :data:`~stereodeblur.settings.TRUE_MOTION_TIE` with the true motion's score) the
-alpha nearest the paper's. It solves them from the smallest up and stops
+tell them apart) the alpha nearest the paper's. It solves them from the smallest up and stops
 once an error is more than :data:`~stereodeblur.settings.HELD_OUT_STOP` above the least. An
 estimated motion that the range guard rejects over the whole view at the paper's alpha is
 rejected at every larger candidate too, where a strong prior can hide the failure (the
@@ -61,12 +60,12 @@ from ..settings import (
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 10
+RULES_VERSION = 8
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results: 10 since stop 42 (a tie share of its own, :data:`HELD_OUT_TIE`; 9
-was stop 41's candidate, not adopted), 8 since stop 38 (the search goes past small bumps; a
-motion the range guard rejects over the whole view at the paper's alpha is rejected above
-it), 7 since stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
+cached benchmark results (9 and 10 were candidates of stops 41 and 42, not adopted: a later
+rule takes 11): 8 since stop 38 (the search goes past small bumps; a motion the
+range guard rejects over the whole view at the paper's alpha is rejected above it), 7 since
+stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
 range-guarded before it is scored), 5 since stop 29 (the noise gate below the floor), 1 before
 (2 to 4 were candidates of stops 28 and 29, not adopted)."""
 TRUE_MOTION_RULES_VERSION = 9
@@ -182,10 +181,10 @@ def candidates(rule: str, floor: float) -> tuple[float, ...]:
     return CROSS_VIEW_ALPHAS
 
 
-def tied(errors, share: float = HELD_OUT_TIE) -> list[int]:
-    """Indices of the prediction errors within ``share`` of the least."""
+def tied(errors) -> list[int]:
+    """Indices of the prediction errors within :data:`HELD_OUT_TIE` of the least."""
     least = min(errors)
-    return [k for k, error in enumerate(errors) if error <= (1.0 + share) * least]
+    return [k for k, error in enumerate(errors) if error <= (1.0 + HELD_OUT_TIE) * least]
 
 
 def searched(rule: str, errors) -> bool:
@@ -195,15 +194,13 @@ def searched(rule: str, errors) -> bool:
     return rule == "held-out" and errors[-1] > (1.0 + HELD_OUT_STOP) * min(errors)
 
 
-def choose(errors, rule: str = "cross-view", alphas=(), *, tie: float = HELD_OUT_TIE) -> int:
+def choose(errors, rule: str = "cross-view", alphas=()) -> int:
     """Index of the chosen alpha among the candidates solved (``alphas``): for
     ``'held-out'`` the one nearest the paper's alpha (in log alpha; the larger on a tie)
-    among the predictors :func:`tied` with the best (within ``tie``: :data:`HELD_OUT_TIE`,
-    with the true motion's score :data:`~stereodeblur.settings.TRUE_MOTION_TIE`), for
-    ``'cross-view'`` :data:`CROSS_VIEW_STEP` above the best predictor, within the grid."""
+    among the predictors :func:`tied` with the best, for ``'cross-view'``
+    :data:`CROSS_VIEW_STEP` above the best predictor, within the grid."""
     if rule == "held-out":
-        ties = tied(errors, tie)
-        return min(ties, key=lambda k: (abs(np.log(alphas[k] / PAPER_ALPHA)), -k))
+        return min(tied(errors), key=lambda k: (abs(np.log(alphas[k] / PAPER_ALPHA)), -k))
     return min(int(np.argmin(errors)) + CROSS_VIEW_STEP, len(errors) - 1)
 
 

@@ -19,13 +19,7 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import (
-    CROSS_VIEW_ALPHAS,
-    HELD_OUT_TIE,
-    PAPER_ALPHA,
-    TRUE_MOTION_TIE,
-    DeblurSettings,
-)
+from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
 from .alpha import (
     OtherView,
     below_floor,
@@ -274,8 +268,7 @@ def _alpha_choice_solve(
         errors.append(score(runs[-1].image))
         if searched(rule, errors):
             break
-    tie = TRUE_MOTION_TIE if observed else HELD_OUT_TIE
-    best = choose(errors, rule, [run.terms.alpha for run in runs], tie=tie)
+    best = choose(errors, rule, [run.terms.alpha for run in runs])
     chosen = runs[best]
     if rule == "held-out" and best == 0 and other.observation is not None:
         gated = [observed_error(chosen.image, other.observation, border=border)]
