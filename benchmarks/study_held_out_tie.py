@@ -104,31 +104,35 @@ def noise_part(record: dict) -> float:
     """The noise's expected share of ``record``'s prediction errors: ``sigma^2`` times the
     mean of the smallest :data:`~stereodeblur.settings.CROSS_VIEW_KEEP` of a chi-square over the
     channels (the trimmed error), or ``sigma^2`` for the untrimmed error of the true motion."""
+    from scipy.stats import chi2
+
     from stereodeblur.settings import CROSS_VIEW_KEEP
 
     if record["observed"]:
         return record["sigma"] ** 2
-    draws = np.random.default_rng(0).standard_normal((100_000, record["channels"]))
-    squares = np.sort((draws**2).mean(axis=1))
-    return record["sigma"] ** 2 * float(squares[: int(CROSS_VIEW_KEEP * squares.size)].mean())
+    channels = record["channels"]  # E[X; X < q] = c F_{c+2}(q) for X ~ chi2(c)
+    kept = chi2.cdf(chi2.ppf(CROSS_VIEW_KEEP, channels), channels + 2) / CROSS_VIEW_KEEP
+    return record["sigma"] ** 2 * float(kept)
 
 
 def replay(record: dict, tie: float, less_noise: bool = False) -> int:
-    """Index of the candidate ``'held-out'`` chooses with the tie share ``tie``; where
-    ``less_noise``, the share is of the least error less :func:`noise_part`."""
+    """Index of the candidate ``'held-out'`` chooses with ``HELD_OUT_TIE = tie``; where
+    ``less_noise``, on the errors less :func:`noise_part` (at most the least error), so that
+    the share is of the least error less the noise's part."""
     from stereodeblur.pipeline import alpha
 
-    curve = record["curve"]
     errors = []
-    for _, error, _ in curve:
+    for _, error, _ in record["curve"]:
         errors.append(error)
         if alpha.searched("held-out", errors):
             break
-    least = min(errors)
-    band = tie * max(least - (noise_part(record) if less_noise else 0.0), 0.0)
-    tied = [k for k, error in enumerate(errors) if error - least <= band]
-    alphas = [a for a, _, _ in curve]
-    return min(tied, key=lambda k: (abs(np.log(alphas[k] / alpha.PAPER_ALPHA)), -k))
+    noise = min(noise_part(record), min(errors)) if less_noise else 0.0
+    saved, alpha.HELD_OUT_TIE = alpha.HELD_OUT_TIE, tie
+    try:
+        alphas = [a for a, _, _ in record["curve"]]
+        return alpha.choose([e - noise for e in errors], "held-out", alphas)
+    finally:
+        alpha.HELD_OUT_TIE = saved
 
 
 def score(record: dict, index: int, grid: dict) -> float:

@@ -93,11 +93,10 @@ def cached_motion(scene, source: str, settings, cache: Path):
 def is_stored(cache: Path, source: str, settings) -> bool:
     """Whether ``cache`` holds a motion of ``source`` made with ``settings``
     (:func:`motion_signature`), which :func:`cached_motion` reads back."""
-    signature = cache / f"{source}.signature"
     return (
         source in STORED_SOURCES
         and (cache / f"{source}.npz").is_file()
-        and _has_text(signature, motion_signature(source, settings))
+        and _has_text(cache / f"{source}.signature", motion_signature(source, settings))
     )
 
 
