@@ -62,6 +62,7 @@ from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
 from stereodeblur.pipeline.alpha import rules_version
 from stereodeblur.pipeline.motion import relabel_rule
+from stereodeblur.pipeline.observations import neighbours_version
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
 from stereodeblur.sceneflow.settings import SceneFlowSettings
 from stereodeblur.settings import PAPER_ALPHA, PAPER_CG, PAPER_IRLS, range_guard_signature
@@ -223,7 +224,8 @@ def _signature(settings, *, rules: bool = True) -> str:
     ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
     before those options stay valid), the relabelling rule's version where it acts, for the
     rules that predict the other view their version (unless not ``rules``: what does not
-    depend on the alpha) and for the true motion the version of its fit."""
+    depend on the alpha), for the true motion the version of its fit and the version of the
+    neighbouring frames' data terms where they are observed."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
@@ -236,7 +238,9 @@ def _signature(settings, *, rules: bool = True) -> str:
     fit = f" true motion fit {FIT_VERSION}" if settings.motion_source == "gt" else ""
     guard = range_guard_signature(settings)
     rules_text = "" if version is None else f" alpha rules {version}"
-    return text + rules_text + stored + fit + guard
+    nb = neighbours_version(settings)
+    neighbours = "" if nb is None else f" neighbours {nb}"
+    return text + rules_text + stored + fit + guard + neighbours
 
 
 def _cached(path: Path, signature: str) -> dict | None:

@@ -37,6 +37,7 @@ __all__ = [
     "MONOCULAR_BOUNDARY_WEIGHTS",
     "OBSERVATIONS",
     "OBSERVATION_ROBUST_SCALE",
+    "NEIGHBOUR_TOLERANCE",
     "KERNELS",
     "MOTION_SOURCES",
     "NUM_CG",
@@ -174,6 +175,13 @@ DEFAULT_OBSERVATIONS = "other-view"
 # with the estimated scene flow, with 0.01 they gain 0.2-0.3 dB (issue 13 study,
 # benchmarks/README.md "Multi-observation study", 320x240 object scenes).
 OBSERVATION_ROBUST_SCALE = 0.01
+# The neighbouring frames count fully while the chosen alpha's single-observation estimate
+# predicts them within this many times its error in the other view; beyond it their squared
+# weight falls as that error ratio (inverse variance). Train half (320x240, scene flow): a
+# noiseless scene whose neighbours the estimate predicts 1000x worse than the other view
+# (family_0002) 51.35 -> 56.61 dB (single 56.59); 1 and 4 gave back 0.69 / 0.39 dB of
+# family_0003's gain (ratios 2.8 and 10; README, issue 13 section).
+NEIGHBOUR_TOLERANCE = 10.0
 
 # The range guard (DeblurSettings.range_guard; stereodeblur.deconv.intensity_range): an estimate
 # more than RANGE_EXCESS outside [0, 1] at more than RANGE_SHARE of the pixels of a
@@ -303,7 +311,9 @@ class DeblurSettings:
         (the paper's); ``'other-view'`` (default) also the other view's frame,
         ``'neighbours'`` also the view's frames before and after, ``'all'`` both
         (:mod:`stereodeblur.pipeline.observations`; weighted by their residual,
-        :data:`OBSERVATION_ROBUST_SCALE`). They need a scene flow: with
+        :data:`OBSERVATION_ROBUST_SCALE`; with an alpha chosen by predicting the other view,
+        the neighbouring frames also by how well the chosen alpha's estimate predicts them,
+        :data:`NEIGHBOUR_TOLERANCE`). They need a scene flow: with
         ``motion_source='initial-flow'`` or a given motion of one view every frame has its
         single observation.
     boundary_flow : bool

@@ -1,17 +1,28 @@
 """Further observations of a view: the other view and the neighbouring frames (issue 13)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from stereodeblur.blur.operator import SparseBlur, dot_test
+from stereodeblur.deconv.irls import Observation
 from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import DeblurSettings, deblur_frame, deblur_stereo_frame
 from stereodeblur.pipeline.frame import build_view_operator
 from stereodeblur.pipeline.motion import stereo_motion
-from stereodeblur.pipeline.observations import compose, view_observations, warp_operator
+from stereodeblur.pipeline.observations import (
+    NamedObservation,
+    compose,
+    view_observations,
+    warp_operator,
+    weighed_neighbours,
+)
 from stereodeblur.pipeline.weights import data_terms
 from stereodeblur.pipeline.window import read_window
+from stereodeblur.settings import NEIGHBOUR_TOLERANCE
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
@@ -41,8 +52,6 @@ def _random_blur(shape, seed):
     cols = (rows + rng.integers(-5, 6, rows.size)) % n
     matrix = np.zeros((n, n), np.float32)
     np.add.at(matrix, (rows, cols), rng.random(rows.size).astype(np.float32))
-    import scipy.sparse as sp
-
     return SparseBlur(sp.csr_matrix(matrix), shape)
 
 
@@ -144,3 +153,52 @@ def test_a_given_motion_keeps_the_single_observation_and_bad_values_are_named(sc
     np.testing.assert_array_equal(given.image, alone.image)
     with pytest.raises(InputError, match="observations must be one of"):
         DeblurSettings(observations="both")
+
+
+def _offset(image, offset, name):
+    """An identity observation of ``image`` whose blurred frame is ``offset`` off everywhere."""
+    identity = SparseBlur(
+        __import__("scipy.sparse").sparse.identity(image.size, "f4").tocsr(), image.shape
+    )
+    weights = np.ones(image.shape, np.float32)
+    return NamedObservation(name, Observation(identity, image + offset, weights))
+
+
+def test_a_neighbour_predicted_far_worse_than_the_other_view_is_weighed_down():
+    image = np.random.default_rng(0).random((10, 12)).astype(np.float32)
+    reference = _offset(image, 0.001, "other-view")  # squared error 1e-6
+    close = _offset(image, 0.003, "next")  # 9e-6: within the tolerance of 10
+    far = _offset(image, 0.1, "previous")  # 1e-2
+    weighed, scales = weighed_neighbours(
+        (reference, close, far), image, reference.observation, border=1
+    )
+    assert [o.name for o in weighed] == ["other-view", "next", "previous"]
+    assert weighed[0] is reference  # the other view is what the neighbours are judged by
+    assert scales["next"] == 1.0
+    np.testing.assert_allclose(
+        scales["previous"], np.sqrt(NEIGHBOUR_TOLERANCE * 1e-6 / 1e-2), rtol=1e-3
+    )
+    np.testing.assert_allclose(weighed[2].observation.weights, scales["previous"], rtol=1e-6)
+    np.testing.assert_array_equal(weighed[1].observation.weights, close.observation.weights)
+
+
+def test_a_misaligned_neighbouring_frame_is_weighed_down_in_the_stereo_frame(tmp_path):
+    rendered = make_object_scene("squares", size=(128, 96), num_samples=16)
+    frames = {}  # frame 2 moved by 4 px: not the motion of frames 0 and 1
+    for view, images in rendered.frames.items():
+        frames[view] = (*images[:2], np.roll(images[2], 4, axis=1), *images[3:])
+    rendered = replace(rendered, frames=frames)
+    scene = open_scene(write_rendered_scene(rendered, tmp_path / "squares"))
+    settings = DeblurSettings(**FAST, motion_source="gt", observations="all")
+    messages = []
+    deblur_stereo_frame(
+        scene, 1, views=("left",), settings=settings, progress=lambda p: messages.append(str(p))
+    )
+    scales = {
+        name: float(m.rsplit(" ", 1)[1])
+        for m in messages
+        for name in ("next", "previous")
+        if f"{name} frame weighed" in m
+    }
+    assert scales["previous"] == 1.0  # frame 0 moves as the motion says
+    assert scales["next"] < 0.5, scales

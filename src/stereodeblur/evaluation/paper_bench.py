@@ -239,9 +239,11 @@ def _signature(column: Column, settings) -> dict:
     ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
     ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
     before those options stay valid; the versions of the alpha rules that predict the other
-    view, of the relabelling rule and of the true motion's fit)."""
+    view, of the relabelling rule, of the true motion's fit and of the neighbouring frames'
+    data terms where they are observed)."""
     from ..pipeline.alpha import rules_version
     from ..pipeline.motion import relabel_rule
+    from ..pipeline.observations import neighbours_version
     from ..sceneflow.from_gt import FIT_VERSION
     from ..settings import range_guard_signature
 
@@ -265,6 +267,8 @@ def _signature(column: Column, settings) -> dict:
         fields["range_guard"] = range_guard_signature(own).strip()
     if own.motion_source == "gt":
         fields["gt_fit"] = FIT_VERSION
+    if neighbours_version(own) is not None:
+        fields["neighbours"] = neighbours_version(own)
     return {**fields, "frame": FRAME}
 
 

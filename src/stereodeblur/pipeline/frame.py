@@ -37,6 +37,7 @@ from .observations import (
     NamedObservation,
     other_view_observation,
     view_observations,
+    weighed_neighbours,
 )
 from .operator import view_operator
 from .weights import DataTerms, data_terms, gate_trusts
@@ -222,9 +223,10 @@ def _alpha_choice_solve(
     gate, :func:`.alpha.below_floor`; with the true motion from the noise rule's alpha up,
     scored by the other view's observation, :func:`.alpha.true_motion_choice`); with
     ``observations``, solve once more with them at that alpha (the other view is then held
-    out of the choice even where it is observed). Every solution is range-guarded
-    (:func:`~.deconvolve.guarded_solve`) before it is scored, so that the choice judges what
-    the view's result would be; with an estimated motion the
+    out of the choice even where it is observed), the neighbouring frames weighed by how well
+    the chosen estimate predicts them (:func:`~.observations.weighed_neighbours`). Every
+    solution is range-guarded (:func:`~.deconvolve.guarded_solve`) before it is scored, so
+    that the choice judges what the view's result would be; with an estimated motion the
     guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
     larger candidate where it took the whole view. ``base``: the data terms at
     :func:`_choice_settings`, if already computed. Returns the data terms, the result and
@@ -278,8 +280,14 @@ def _alpha_choice_solve(
             if gated[-1] >= gated[-2]:
                 break
             chosen = below
-    terms, result, unexplained, _ = chosen
+    terms, result, unexplained, image = chosen
     if observations:
+        if other.observation is not None:
+            observations, scales = weighed_neighbours(
+                observations, image, other.observation, border=border
+            )
+            for name, scale in scales.items():
+                report(progress, f"{name} frame weighed {scale:.2g}")
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
         result, unexplained = guarded_solve(

@@ -7,11 +7,14 @@ per-segment homographies for the frames t - 1 and t + 1, whose motion is taken a
 over the three frames), then blurred by that image's own occlusion-aware operator. A blurred
 pixel whose exposure touches warped pixels the view does not see at the frame's centre
 (occluded, outside, or another surface) gets weight 0 (:data:`UNSEEN_SHARE`).
+The neighbouring frames rest on the motion being constant over three frames; where an alpha
+is chosen, their weights also follow how well its estimate predicts them
+(:func:`weighed_neighbours`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -25,6 +28,8 @@ from ..deconv.weights import hidden_weights
 from ..geometry.plane import move_plane
 from ..geometry.rigid import se3_exp
 from ..sceneflow.model import SceneFlow
+from ..settings import NEIGHBOUR_TOLERANCE
+from .alpha import observed_error
 from .motion import FrameMotion, fill_from_nearest, splat_order
 from .operator import ViewOperator, view_operator
 from .window import FrameWindow, observation_kinds
@@ -34,6 +39,16 @@ if TYPE_CHECKING:
 
 UNSEEN_SHARE = 0.02
 """Share of a blurred pixel's exposure on unseen warped pixels above which it gets weight 0."""
+NEIGHBOURS_VERSION = 2
+"""Version of the neighbouring frames' data terms, part of the signature of cached benchmark
+results: 2 since stop 44 (:func:`weighed_neighbours`), 1 before."""
+NEIGHBOURS = ("previous", "next")
+
+
+def neighbours_version(settings: DeblurSettings) -> int | None:
+    """:data:`NEIGHBOURS_VERSION` where ``settings`` observe the neighbouring frames, else
+    None."""
+    return NEIGHBOURS_VERSION if "neighbours" in observation_kinds(settings) else None
 
 
 @dataclass(frozen=True)
@@ -90,6 +105,34 @@ def without_pixels(observation: NamedObservation, mask: np.ndarray) -> NamedObse
     o = observation.observation
     weights = _unseen_weights(o.operator, ~np.asarray(mask, dtype=bool), o.weights)
     return NamedObservation(observation.name, Observation(o.operator, o.blurred, weights))
+
+
+def weighed_neighbours(
+    observations, image: np.ndarray, reference: Observation, *, border: int
+) -> tuple[tuple[NamedObservation, ...], dict[str, float]]:
+    """``observations`` with each neighbouring frame's weights scaled by
+    ``sqrt(min(1, NEIGHBOUR_TOLERANCE * e_ref / e))``, and those scales by name.
+
+    ``e`` is the mean squared error of the neighbour's blurred frame predicted from
+    ``image`` (an estimate that did not use it), ``e_ref`` the same for ``reference`` (the
+    other view's observation, equally held out), both by
+    :func:`~.alpha.observed_error`. A neighbour the estimate predicts far worse than the
+    other view is misaligned by a motion that is not constant over three frames; on a
+    noiseless frame it then sets the solution against its own frame (speckle at a small
+    alpha). Its squared weight then falls as the inverse of its error, as for independent
+    observations weighted by their variance.
+    """
+    allowed = NEIGHBOUR_TOLERANCE * observed_error(image, reference, border=border)
+    out, scales = [], {}
+    for item in observations:
+        if item.name in NEIGHBOURS:
+            error = observed_error(image, item.observation, border=border)
+            scale = 1.0 if error <= allowed else float(np.sqrt(allowed / error))
+            weights = (item.observation.weights * scale).astype(np.float32)
+            item = NamedObservation(item.name, replace(item.observation, weights=weights))
+            scales[item.name] = scale
+        out.append(item)
+    return tuple(out), scales
 
 
 def other_view_observation(
