@@ -182,14 +182,15 @@ def test_a_neighbour_predicted_far_worse_than_the_other_view_is_weighed_down():
     np.testing.assert_array_equal(weighed[1].observation.weights, close.observation.weights)
 
 
-def test_a_misaligned_neighbouring_frame_is_weighed_down_in_the_stereo_frame(tmp_path):
+@pytest.mark.parametrize("alpha", ["held-out", 1e-3])
+def test_a_misaligned_neighbouring_frame_is_weighed_down_in_the_stereo_frame(tmp_path, alpha):
     rendered = make_object_scene("squares", size=(128, 96), num_samples=16)
     frames = {}  # frame 2 moved by 4 px: not the motion of frames 0 and 1
     for view, images in rendered.frames.items():
         frames[view] = (*images[:2], np.roll(images[2], 4, axis=1), *images[3:])
     rendered = replace(rendered, frames=frames)
     scene = open_scene(write_rendered_scene(rendered, tmp_path / "squares"))
-    settings = DeblurSettings(**FAST, motion_source="gt", observations="all")
+    settings = DeblurSettings(**FAST, motion_source="gt", observations="all", alpha=alpha)
     messages = []
     deblur_stereo_frame(
         scene, 1, views=("left",), settings=settings, progress=lambda p: messages.append(str(p))

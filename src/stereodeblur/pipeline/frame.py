@@ -34,6 +34,7 @@ from .alpha import (
 from .deconvolve import guarded_solve
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import (
+    NEIGHBOURS,
     NamedObservation,
     other_view_observation,
     view_observations,
@@ -168,6 +169,7 @@ def deblur_view(
         )
     else:
         terms = terms or data_terms(scene, window, view, operator, settings)
+        observations = _judged(blurred, operator, terms, settings, weights, observations, progress)
         result, unexplained = guarded_solve(
             blurred, operator, terms, settings, weights, observations, progress
         )
@@ -192,6 +194,28 @@ def deblur_view(
         tuple(o.name for o in observations),
         unexplained,
     )
+
+
+def _judged(blurred, operator, terms, settings, weights, observations, progress):
+    """``observations`` with the neighbouring frames weighed against the other view's
+    observation among them (:func:`~.observations.weighed_neighbours`) by the view's own
+    solution at ``terms``' alpha, solved for it; unchanged without both."""
+    names = {o.name for o in observations}
+    if "other-view" not in names or not names & set(NEIGHBOURS):
+        return observations
+    own = replace(terms, update=copy.deepcopy(terms.update))
+    single, _ = guarded_solve(blurred, operator, own, settings, weights, (), progress)
+    reference = next(o.observation for o in observations if o.name == "other-view")
+    image = np.clip(single.image, 0.0, 1.0)
+    return _weighed(observations, image, reference, border_for(blurred.shape[1]), progress)
+
+
+def _weighed(observations, image, reference, border, progress):
+    """:func:`~.observations.weighed_neighbours`, each scale reported."""
+    observations, scales = weighed_neighbours(observations, image, reference, border=border)
+    for name, scale in scales.items():
+        report(progress, f"{name} frame weighed {scale:.2g}")
+    return observations
 
 
 def _choice_settings(settings: DeblurSettings) -> DeblurSettings:
@@ -283,11 +307,7 @@ def _alpha_choice_solve(
     terms, result, unexplained, image = chosen
     if observations:
         if other.observation is not None:
-            observations, scales = weighed_neighbours(
-                observations, image, other.observation, border=border
-            )
-            for name, scale in scales.items():
-                report(progress, f"{name} frame weighed {scale:.2g}")
+            observations = _weighed(observations, image, other.observation, border, progress)
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
         result, unexplained = guarded_solve(

@@ -7,8 +7,8 @@ per-segment homographies for the frames t - 1 and t + 1, whose motion is taken a
 over the three frames), then blurred by that image's own occlusion-aware operator. A blurred
 pixel whose exposure touches warped pixels the view does not see at the frame's centre
 (occluded, outside, or another surface) gets weight 0 (:data:`UNSEEN_SHARE`).
-The neighbouring frames rest on the motion being constant over three frames; where an alpha
-is chosen, their weights also follow how well its estimate predicts them
+The neighbouring frames rest on the motion being constant over three frames; beside the other
+view, their weights also follow how well the view's own estimate predicts them
 (:func:`weighed_neighbours`).
 """
 
