@@ -185,7 +185,8 @@ def test_timings_name_the_stages(scene, observations):
 
 def test_progress_names_frame_and_view(scene):
     seen = []
-    settings = DeblurSettings(**FAST, motion_source="gt", alpha=1e-3)  # one solve per view
+    # one solve per view: the other view only (the neighbouring frames' weighing solves twice)
+    settings = DeblurSettings(**FAST, motion_source="gt", alpha=1e-3, observations="other-view")
     deblur_stereo_frame(scene, 1, settings=settings, progress=seen.append)
     stages = [p.stage for p in seen]
     assert stages[0] == "frame 1: motion (gt)"
@@ -200,7 +201,8 @@ def test_a_given_scene_flow_replaces_the_estimate(scene, monkeypatch):
     sceneflow = estimated.motion.estimate.sceneflow
     reads, estimates, _ = _count(monkeypatch, scene)
     given = deblur_stereo_frame(scene, 1, settings=settings, sceneflow=sceneflow)
-    assert estimates == [] and set(reads) == {("left", 1), ("right", 1)}
+    frames = {(view, index) for view in ("left", "right") for index in (0, 1, 2)}
+    assert estimates == [] and set(reads) == frames  # the neighbouring frames, observed
     for view in ("left", "right"):
         np.testing.assert_array_equal(given.frames[view].image, estimated.frames[view].image)
     with pytest.raises(InputError, match="left view"):
