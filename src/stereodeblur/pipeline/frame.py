@@ -460,4 +460,5 @@ def deblur_stereo_frame(
             terms=terms.get(view),
             observations=tuple(observations),
         )
+        del seen, other, observations  # freed before the next view's are built (peak memory)
     return StereoFrameResult(index, frames, motion, timings)
