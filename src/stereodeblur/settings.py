@@ -173,8 +173,9 @@ RELABEL_RADIUS = 6
 # 'all' since stop 44 (the neighbouring frames too, weighed by NEIGHBOUR_TOLERANCE): train split
 # +0.15 dB over 'other-view' with the scene flow (worst -0.76, a failed scene flow); test split
 # +0.13 dB (worst -0.76, the same kind; calibrate_defaults_test_320x240_all.md); bench paper
-# +0.42 dB, objects +0.36 / +0.32 (paper_observations_640x480_all.md); about 2x the time
-# (README, speed table). 'other-view' is the faster setting.
+# +0.42 dB, objects +0.36 / +0.32 (paper_observations_640x480_all.md); bench planar's scene
+# flow at 320x240 -0.10 dB (yaw -0.72); 2.4x the time of 'other-view' per 640x480 stereo frame
+# (README, speed table), which is the faster setting.
 DEFAULT_OBSERVATIONS = "all"
 # Residual scale of the further observations' Cauchy weights: without them they lose 1-4 dB
 # with the estimated scene flow, with 0.01 they gain 0.2-0.3 dB (issue 13 study,

@@ -157,9 +157,7 @@ def test_a_given_motion_keeps_the_single_observation_and_bad_values_are_named(sc
 
 def _offset(image, offset, name):
     """An identity observation of ``image`` whose blurred frame is ``offset`` off everywhere."""
-    identity = SparseBlur(
-        __import__("scipy.sparse").sparse.identity(image.size, "f4").tocsr(), image.shape
-    )
+    identity = SparseBlur(sp.identity(image.size, "f4", format="csr"), image.shape)
     weights = np.ones(image.shape, np.float32)
     return NamedObservation(name, Observation(identity, image + offset, weights))
 
@@ -193,7 +191,7 @@ def test_a_misaligned_neighbouring_frame_is_weighed_down_in_the_stereo_frame(tmp
     settings = DeblurSettings(**FAST, motion_source="gt", observations="all", alpha=alpha)
     messages = []
     deblur_stereo_frame(
-        scene, 1, views=("left",), settings=settings, progress=lambda p: messages.append(str(p))
+        scene, 1, views=("left",), settings=settings, progress=lambda p: messages.append(p.stage)
     )
     scales = {
         name: float(m.rsplit(" ", 1)[1])
