@@ -174,7 +174,7 @@ RELABEL_RADIUS = 6
 # +0.15 dB over 'other-view' with the scene flow (worst -0.76, a failed scene flow); test split
 # +0.13 dB (worst -0.76, the same kind; calibrate_defaults_test_320x240_all.md); bench paper
 # +0.42 dB, objects +0.36 / +0.32 (paper_observations_640x480_all.md); bench planar's scene
-# flow at 320x240 -0.10 dB (yaw -0.72); 2.4x the time of 'other-view' per 640x480 stereo frame
+# flow at 320x240 -0.10 dB (yaw -0.72); 2.5x the time of 'other-view' per 640x480 stereo frame
 # (README, speed table), which is the faster setting.
 DEFAULT_OBSERVATIONS = "all"
 # Residual scale of the further observations' Cauchy weights: without them they lose 1-4 dB
