@@ -171,7 +171,8 @@ RELABEL_RADIUS = 6
 # results/paper_observations_640x480_other_view.md); then the test split +0.37 / +0.16 dB
 # (calibrate_defaults_test_320x240.md); 1.3x the time. 'single' is the paper's.
 # 'all' since stop 44 (the neighbouring frames too, weighed by NEIGHBOUR_TOLERANCE): train split
-# +0.15 dB over 'other-view' with the scene flow (worst -0.76, a failed scene flow); test split
+# +0.26 / +0.15 dB over 'other-view' (true motion / scene flow; worst -0.28 / -0.76, a failed
+# scene flow; calibrate_defaults_train_320x240_stop44.md); test split
 # +0.13 dB (worst -0.76, the same kind; calibrate_defaults_test_320x240_all.md); bench paper
 # +0.42 dB, objects +0.36 / +0.32 (paper_observations_640x480_all.md); bench planar's scene
 # flow at 320x240 -0.10 dB (yaw -0.72); 2.5x the time of 'other-view' per 640x480 stereo frame
