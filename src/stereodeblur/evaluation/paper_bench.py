@@ -267,8 +267,8 @@ def _signature(column: Column, settings) -> dict:
         fields["range_guard"] = range_guard_signature(own).strip()
     if own.motion_source == "gt":
         fields["gt_fit"] = FIT_VERSION
-    if neighbours_version(own) is not None:
-        fields["neighbours"] = neighbours_version(own)
+    if (neighbours := neighbours_version(own)) is not None:
+        fields["neighbours"] = neighbours
     return {**fields, "frame": FRAME}
 
 
