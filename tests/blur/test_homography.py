@@ -36,20 +36,31 @@ def test_reference_covers_positions_outside_the_image():
     np.testing.assert_allclose(on_edge, 5 / 9, atol=1e-6)  # 5 of 9 instants have s <= 0
 
 
-@pytest.mark.parametrize("velocity", [(0.3, 0.0), (0.2, -0.25), (-0.35, 0.1)])
-def test_fronto_parallel_translation_matches_ndimage_shift(velocity):
+@pytest.mark.parametrize(
+    "velocity, offset",
+    [
+        ((0.3, 0.0), 0.0),
+        ((0.2, -0.25), 0.0),
+        ((-0.35, 0.1), 0.0),
+        ((0.1, 0.05), 1.0),
+        ((-0.08, 0.1), -1.0),
+    ],
+)
+def test_fronto_parallel_translation_matches_ndimage_shift(velocity, offset):
+    """``offset``: the exposure of the frame that many intervals away, from this sharp frame."""
     depth = 3.0
     scene = translation_sceneflow(SHAPE, velocity, depth)
     num_samples = 15
-    op = homography_blur(scene, EXPOSURE, num_samples=num_samples)
+    op = homography_blur(scene, EXPOSURE, num_samples=num_samples, offset=offset)
     image = np.random.default_rng(0).random(SHAPE)
     focal = scene.camera.K[[0, 1], [0, 1]]
     expected = np.zeros(SHAPE)
-    for s in EXPOSURE.sample_fractions(num_samples):
+    for s in offset + EXPOSURE.sample_fractions(num_samples):
         dx, dy = s * focal * np.asarray(velocity) / depth  # content moves by (dx, dy)
         expected += ndimage.shift(image, (dy, dx), order=1, mode="nearest")
     expected /= num_samples
-    reach = int(np.ceil(EXPOSURE.duty_cycle / 2 * np.abs(focal * velocity / depth).max())) + 1
+    span = abs(offset) + EXPOSURE.duty_cycle / 2
+    reach = int(np.ceil(span * np.abs(focal * velocity / depth).max())) + 1
     inner = (slice(reach, -reach), slice(reach, -reach))
     blurred = op.forward(image)
     np.testing.assert_allclose(blurred[inner], expected[inner], atol=2e-6)
@@ -108,11 +119,11 @@ def test_bad_num_samples(num_samples):
         homography_blur(scene, EXPOSURE, num_samples=num_samples)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_cubic_sparse_equals_numpy_reference(seed):
+@pytest.mark.parametrize("seed, offset", [(0, 0.0), (1, 0.0), (2, 1.0), (3, -1.0)])
+def test_cubic_sparse_equals_numpy_reference(seed, offset):
     scene = random_sceneflow(SHAPE, seed, grid=(3, 4), speed=2.0)
-    fast = homography_blur(scene, EXPOSURE, interpolation="cubic").matrix
-    slow = homography_blur_reference(scene, EXPOSURE, interpolation="cubic").matrix
+    fast = homography_blur(scene, EXPOSURE, interpolation="cubic", offset=offset).matrix
+    slow = homography_blur_reference(scene, EXPOSURE, interpolation="cubic", offset=offset).matrix
     np.testing.assert_array_equal(fast.indptr, slow.indptr)
     np.testing.assert_array_equal(fast.indices, slow.indices)
     np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)

@@ -48,6 +48,40 @@ def test_moving_rectangle_covers_and_uncovers_the_background(flow_px):
     assert 0.3 < np.mean(visible[:, 20, leading] == 1) <= 0.5
 
 
+@pytest.mark.parametrize("offset", [1.0, -1.0])
+def test_another_frames_exposure_shows_what_the_reference_frame_covers(offset):
+    """The rectangle's exposure one frame later (or earlier), seen from the reference frame:
+    the background it uncovers there is hidden, wherever it is at that frame."""
+    flow_px = 6.0
+    sf = _rectangle_over_background(flow_px)
+    num_samples = 9
+    own = np.zeros(SHAPE, np.int32)  # the segments at the other frame's centre
+    own[ROWS, COLS[0] + int(offset * flow_px) : COLS[1] + int(offset * flow_px) + 1] = 1
+    visible = sceneflow_visibility(sf, EXPOSURE, num_samples, offset=offset, own=own)
+    x = np.arange(SHAPE[1])
+    expected = np.zeros((num_samples,) + SHAPE, np.int32)
+    for k, s in enumerate(offset + EXPOSURE.sample_fractions(num_samples)):
+        source = np.floor(x - s * flow_px + 0.5)
+        on_rectangle = (source >= COLS[0]) & (source <= COLS[1])
+        was_rectangle = (x >= COLS[0]) & (x <= COLS[1])
+        expected[k, ROWS] = np.where(on_rectangle, 1, np.where(was_rectangle, HIDDEN, 0))
+    np.testing.assert_array_equal(visible, expected)
+    uncovered = COLS[0] + 2 if offset > 0 else COLS[1] - 2  # behind it, throughout
+    assert hidden_fraction(visible)[20, uncovered] == 1
+
+
+def test_content_from_outside_the_reference_frame_is_hidden_in_another_frame():
+    sf = translation_sceneflow(SHAPE, (0.4, 0.0))  # about 10 px to the right per frame
+    shift = sf.flow()[0, 0, 0]
+    own = np.zeros(SHAPE, np.int32)
+    visible = sceneflow_visibility(sf, EXPOSURE, 9, offset=1.0, own=own)
+    entering = np.arange(SHAPE[1]) < shift - EXPOSURE.duty_cycle * shift / 2 - 1
+    assert np.all(visible[:, :, entering] == HIDDEN)
+    inside = np.arange(SHAPE[1]) > shift + EXPOSURE.duty_cycle * shift / 2 + 1
+    assert np.all(visible[:, :, inside] == 0)
+    assert np.all(sceneflow_visibility(sf, EXPOSURE, 9) == 0)  # its own exposure: the edge's
+
+
 def test_a_single_surface_shows_itself_and_gives_the_papers_operator():
     sf = translation_sceneflow(SHAPE, (0.4, -0.2))
     visible = sceneflow_visibility(sf, EXPOSURE, 15)

@@ -66,9 +66,9 @@ def csr_from_arrays(indptr, indices, data, size: int) -> sp.csr_matrix:
     return matrix
 
 
-def _inputs(sceneflow: SceneFlow, exposure: Exposure, num_samples) -> tuple:
+def _inputs(sceneflow: SceneFlow, exposure: Exposure, num_samples, offset: float) -> tuple:
     num_samples = _check_num_samples(num_samples)
-    fractions = exposure.sample_fractions(num_samples)
+    fractions = offset + exposure.sample_fractions(num_samples)
     homographies = np.ascontiguousarray(sceneflow.homographies(fractions), dtype=np.float64)
     labels = np.ascontiguousarray(sceneflow.labels, dtype=np.int32)
     return homographies, labels, num_samples
@@ -82,6 +82,7 @@ def homography_blur(
     visible=None,
     substitute: tuple[SparseBlur, np.ndarray] | None = None,
     interpolation: str = "bilinear",
+    offset: float = 0.0,
 ) -> SparseBlur:
     """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
 
@@ -105,6 +106,11 @@ def homography_blur(
     interpolation : {'bilinear', 'cubic'}, optional
         How the sharp image is sampled at the positions: bilinear (the paper) or Keys'
         cubic convolution (:mod:`.trajectories`; about 2.5x the entries).
+    offset : float, optional
+        Frame intervals between the reference instant and the exposure's centre: with
+        ``offset = 1`` the rows are the next frame's blurred pixels, gathered from the
+        reference frame's sharp image (``sceneflow.labels`` then the segments the next frame
+        shows, its planes and motions the reference frame's).
 
     Returns
     -------
@@ -113,7 +119,7 @@ def homography_blur(
         Every row sums to one.
     """
     cubic = is_cubic(interpolation)
-    homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
+    homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples, offset)
     if visible is not None:
         visible = _check_visible(visible, num_samples, labels.shape, homographies.shape[0])
     if substitute is not None:
@@ -132,13 +138,14 @@ def homography_blur_reference(
     num_samples: int = NUM_SAMPLES,
     visible=None,
     interpolation: str = "bilinear",
+    offset: float = 0.0,
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`homography_blur`.
 
     Used by the tests to check the fast assembly; it takes its positions and
     weights from the vectorised forms in :mod:`.trajectories`.
     """
-    homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples)
+    homographies, labels, num_samples = _inputs(sceneflow, exposure, num_samples, offset)
     size = labels.size
     if visible is not None:
         labels = np.moveaxis(np.where(visible >= 0, visible, labels), 0, -1)

@@ -36,8 +36,13 @@ HIDDEN = -1
 
 
 @njit(**_kernels._JIT)
-def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
-    """Visible segment of every pixel at instants ``first .. last - 1``, into ``out``."""
+def _instants(
+    first, last, ref_from_t, t_from_ref, inverse_depth, labels, own_labels, entering, out
+):
+    """Visible segment of every pixel at instants ``first .. last - 1``, into ``out``.
+
+    ``own_labels``: each pixel's own segment; ``entering``: content from outside the
+    reference image is the own segment's (else hidden)."""
     height, width = labels.shape
     nearest = np.empty((height, width), np.float64)
     splat = np.empty((height, width), np.int32)
@@ -59,7 +64,7 @@ def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
         # Backward check of the candidates; the nearest covering one wins.
         for y in range(height):
             for x in range(width):
-                own = labels[y, x]
+                own = own_labels[y, x]
                 best = HIDDEN
                 best_d = -np.inf
                 for k in range(-1, 9):
@@ -77,7 +82,7 @@ def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
                     ix = np.int64(np.floor(px + 0.5))
                     iy = np.int64(np.floor(py + 0.5))
                     if ix < 0 or iy < 0 or ix >= width or iy >= height:
-                        if c != own:  # content entering the view: the own segment's
+                        if c != own or not entering:  # entering the view: the own segment's
                             continue
                     elif labels[iy, ix] != c:
                         continue
@@ -89,7 +94,7 @@ def _instants(first, last, ref_from_t, t_from_ref, inverse_depth, labels, out):
 
 
 def visible_labels(
-    ref_from_t: np.ndarray, labels: np.ndarray, inverse_depth: np.ndarray
+    ref_from_t: np.ndarray, labels: np.ndarray, inverse_depth: np.ndarray, *, own=None
 ) -> np.ndarray:
     """Segment shown by every pixel at every instant.
 
@@ -102,6 +107,11 @@ def visible_labels(
     inverse_depth : ndarray, shape (L, 3)
         Inverse depth of segment ``s`` at reference pixel ``(x, y)`` is
         ``inverse_depth[s] . (x, y, 1)`` (any positive scale).
+    own : ndarray of int, shape (H, W), optional
+        The segment every pixel shows at the centre of another frame's exposure, whose
+        instants ``ref_from_t`` then holds: the reference image holds nothing of what lies
+        outside it (hidden). None: ``labels``, content entering the view is the pixel's own
+        segment.
 
     Returns
     -------
@@ -112,6 +122,8 @@ def visible_labels(
     ref_from_t = np.ascontiguousarray(ref_from_t, dtype=np.float64)
     t_from_ref = np.ascontiguousarray(np.linalg.inv(ref_from_t))
     labels = np.ascontiguousarray(labels, dtype=np.int32)
+    entering = own is None
+    own = labels if own is None else np.ascontiguousarray(own, dtype=np.int32)
     inverse_depth = np.ascontiguousarray(inverse_depth, dtype=np.float64)
     num_segments, num_samples = ref_from_t.shape[:2]
     dtype = np.int16 if num_segments <= np.iinfo(np.int16).max else np.int32
@@ -119,17 +131,24 @@ def visible_labels(
     parts = min(num_samples, 4 * numba.get_num_threads())
     bounds = np.linspace(0, num_samples, parts + 1).round().astype(int)
     ranges = [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
-    _kernels.run_ranges(_instants, ranges, ref_from_t, t_from_ref, inverse_depth, labels, out)
+    args = ref_from_t, t_from_ref, inverse_depth, labels, own, entering, out
+    _kernels.run_ranges(_instants, ranges, *args)
     return out
 
 
-def sceneflow_visibility(sceneflow: SceneFlow, exposure: Exposure, num_samples: int) -> np.ndarray:
-    """:func:`visible_labels` of ``sceneflow``'s view at ``exposure.sample_fractions``."""
-    homographies = sceneflow.homographies(exposure.sample_fractions(num_samples))
+def sceneflow_visibility(
+    sceneflow: SceneFlow, exposure: Exposure, num_samples: int, *, offset=0.0, own=None
+) -> np.ndarray:
+    """:func:`visible_labels` of ``sceneflow``'s view at ``offset + exposure.sample_fractions``.
+
+    ``offset`` (frame intervals) and ``own``: the exposure of another frame, whose pixels show
+    the segments ``own`` at its centre (:func:`visible_labels`).
+    """
+    homographies = sceneflow.homographies(offset + exposure.sample_fractions(num_samples))
     camera = sceneflow.camera
     center = camera.center(sceneflow.view)
     planes = np.stack([plane_in_view(n, center) for n in sceneflow.normals])
-    return visible_labels(homographies, sceneflow.labels, planes @ camera.K_inv)
+    return visible_labels(homographies, sceneflow.labels, planes @ camera.K_inv, own=own)
 
 
 def hidden_fraction(visible: np.ndarray) -> np.ndarray:

@@ -1,11 +1,12 @@
 """Further blurred observations of a view's sharp frame: the other view, the neighbouring frames.
 
-Each is an :class:`~stereodeblur.deconv.irls.Observation` whose operator composes a warp and a
-blur: the view's sharp frame at the frame's centre is warped to the observed image's sharp frame
-at *its* centre (cubic, by the scene flow: the disparity for the other view, the
-per-segment homographies for the frames t - 1 and t + 1, whose motion is taken as constant
-over the three frames), then blurred by that image's own occlusion-aware operator. A blurred
-pixel whose exposure touches warped pixels the view does not see at the frame's centre
+Each is an :class:`~stereodeblur.deconv.irls.Observation` of the view's sharp frame at the
+frame's centre. The other view's operator composes a warp and a blur: the sharp frame is warped
+to the other view's by the disparity (cubic), then blurred by that view's own operator. The
+frames t - 1 and t + 1 gather the sharp frame along their own exposure's trajectories, the
+per-segment homographies of the scene flow at instants one frame interval away (the motion
+taken as constant over the three frames), occlusion-aware as the frame's own operator. A
+blurred pixel whose exposure touches pixels the view does not see at the frame's centre
 (occluded, outside, or another surface) gets weight 0 (:data:`UNSEEN_SHARE`).
 The neighbouring frames rest on the motion being constant over three frames; beside the other
 view, their weights also follow how well the view's own estimate predicts them
@@ -20,28 +21,31 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
+from ..blur.homography import homography_blur
 from ..blur.operator import SparseBlur
 from ..blur.trajectories import homography_positions, keys_weights
+from ..blur.visibility import hidden_fraction, sceneflow_visibility
 from ..deconv.irls import Observation
 from ..deconv.trust import OUTSIDE_WEIGHT, leaves_view
-from ..deconv.weights import hidden_weights
 from ..geometry.plane import move_plane
 from ..geometry.rigid import se3_exp
 from ..sceneflow.model import SceneFlow
 from ..settings import NEIGHBOUR_TOLERANCE
 from .alpha import observed_error
 from .motion import FrameMotion, fill_from_nearest, splat_order
-from .operator import ViewOperator, view_operator
-from .window import FrameWindow, observation_kinds
+from .operator import ViewOperator, build_operator
+from .window import FrameWindow, observation_kinds, occlusion_aware
 
 if TYPE_CHECKING:
     from ..settings import DeblurSettings
 
 UNSEEN_SHARE = 0.02
-"""Share of a blurred pixel's exposure on unseen warped pixels above which it gets weight 0."""
-NEIGHBOURS_VERSION = 2
+"""Share of a blurred pixel's exposure on what the frame's centre does not see (warped pixels
+of the other view, instants of a neighbouring frame) above which it gets weight 0."""
+NEIGHBOURS_VERSION = 3
 """Version of the neighbouring frames' data terms, part of the signature of cached benchmark
-results: 2 since stop 44 (:func:`weighed_neighbours`), 1 before."""
+results: 3 since stop 45 (one gather, :func:`neighbour_observation`), 2 since stop 44
+(:func:`weighed_neighbours`), 1 before."""
 NEIGHBOURS = ("previous", "next")
 
 
@@ -161,8 +165,8 @@ def other_view_observation(
     )
 
 
-def _splat_labels(sf: SceneFlow, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Labels of the view seeing ``points`` (nearest first); holes filled and returned."""
+def _splat_labels(sf: SceneFlow, points: np.ndarray) -> np.ndarray:
+    """Labels of the view seeing ``points`` (nearest first); holes filled from the nearest."""
     H, W = sf.shape
     q = sf.camera.project(points, sf.view)
     xr, yr = np.round(q[..., 0]).astype(int), np.round(q[..., 1]).astype(int)
@@ -170,40 +174,53 @@ def _splat_labels(sf: SceneFlow, points: np.ndarray) -> tuple[np.ndarray, np.nda
     order = splat_order(-points[..., 2], ok)
     labels = np.full((H, W), -1, np.int32)
     labels[yr.ravel()[order], xr.ravel()[order]] = sf.labels.ravel()[order]
-    holes = labels < 0
-    fill_from_nearest(labels, holes)
-    return labels, holes
+    fill_from_nearest(labels, labels < 0)
+    return labels
 
 
 def neighbour_observation(
     sf: SceneFlow, step: float, blurred: np.ndarray, exposure, settings: DeblurSettings
 ) -> Observation:
     """The view's blurred frame ``step`` frame intervals of ``sf`` away (+1: towards the
-    scene flow's neighbour, -1: the other side) as an observation of its sharp frame."""
+    scene flow's neighbour, -1: the other side) as an observation of its sharp frame.
+
+    With homography kernels each of its pixels gathers the sharp frame along its own
+    trajectory (:func:`~stereodeblur.blur.homography.homography_blur` at ``offset=step``):
+    one interpolation, where the blur of the warped frame interpolates twice and smooths
+    what both keep (README, "The neighbouring frames in one gather"). At every instant a
+    pixel shows the segment of the frame's centre that covers it
+    (:func:`~stereodeblur.blur.visibility.sceneflow_visibility` at the same offset); where
+    none does for more than :data:`UNSEEN_SHARE` of the exposure it gets weight 0.
+    """
+    labels = _splat_labels(sf, sf.points_at(step))
+    still = np.zeros(sf.shape, bool)
+    num = settings.num_samples
+    visible = sceneflow_visibility(sf, exposure, num, offset=step, own=labels)
     M = se3_exp(step * sf.twists)
     normals = np.stack(
         [move_plane(n, m[:3, :3], m[:3, 3]) for n, m in zip(sf.normals, M, strict=True)]
     )
-    labels, holes = _splat_labels(sf, sf.points_at(step))
-    moved = SceneFlow(sf.camera, labels, normals, sf.twists, np.zeros_like(holes), sf.view)
-    motion = FrameMotion(0, 1, sf.view, moved, moved.flow(), moved.reversed().flow())
-    blur = view_operator(motion, exposure, settings)
-    positions = homography_positions(sf.homographies(np.array([step])), labels)[:, :, 0]
-    H, W = sf.shape
-    inside = (positions[..., 0] >= 0) & (positions[..., 0] <= W - 1)
-    inside &= (positions[..., 1] >= 0) & (positions[..., 1] <= H - 1)
-    xi = np.clip(np.round(positions[..., 0]).astype(int), 0, W - 1)
-    yi = np.clip(np.round(positions[..., 1]).astype(int), 0, H - 1)
-    seen = inside & ~holes & (sf.labels[yi, xi] == labels)
-    leaves = leaves_view(motion.flow_forward, motion.flow_backward, exposure.duty_cycle)
+    moved = SceneFlow(sf.camera, labels, normals, sf.twists, still, sf.view)
+    forward, backward = moved.flow(), moved.reversed().flow()
+    leaves = leaves_view(forward, backward, exposure.duty_cycle)
     weights = np.where(leaves, OUTSIDE_WEIGHT, 1.0)
-    if blur.hidden is not None:
-        weights = weights * hidden_weights(blur.hidden)
-    return Observation(
-        compose(blur.operator, warp_operator(positions, (H, W))),
-        blurred,
-        _unseen_weights(blur.operator, seen, weights),
-    )
+    weights = np.where(hidden_fraction(visible) > UNSEEN_SHARE, 0.0, weights).astype(np.float32)
+    if settings.kernels == "homography":
+        shows = SceneFlow(sf.camera, labels, sf.normals, sf.twists, still, sf.view)
+        operator = homography_blur(
+            shows,
+            exposure,
+            num_samples=num,
+            visible=visible if occlusion_aware(settings) else None,
+            interpolation=settings.interpolation,
+            offset=step,
+        )
+    else:
+        motion = FrameMotion(0, 1, sf.view, moved, forward, backward)
+        positions = homography_positions(sf.homographies(np.array([step])), labels)[:, :, 0]
+        blur = build_operator(motion, exposure, settings)
+        operator = compose(blur, warp_operator(positions, sf.shape))
+    return Observation(operator, blurred, weights)
 
 
 def view_observations(
