@@ -15,6 +15,7 @@ from stereodeblur.pipeline.alpha import (
     OtherView,
     below_floor,
     choose,
+    held_out_error,
     observed_error,
     prediction_error,
     searched,
@@ -102,6 +103,23 @@ def test_the_gates_error_counts_the_pixels_the_other_view_sees_in_full():
     assert observed_error(colour, noisy, border=4) == pytest.approx(0.01)
     blind = Observation(_Identity(), image, np.zeros_like(seen))
     assert observed_error(image, blind, border=4) == np.inf
+
+
+def test_the_held_out_error_sums_the_observations_errors_where_each_sees():
+    image = _texture((30, 40))
+    seen = np.ones((30, 40), np.float32)
+    other = Observation(_Identity(), image, seen)  # the other view agrees with the estimate
+    moved = image.copy()
+    moved[10:12, 10:20] += 1.0  # a motion error the other view shares does not show there
+    following = Observation(_Identity(), moved, seen)
+    assert held_out_error(image, [other], border=4) < 1e-20
+    error = held_out_error(image, [other, following], border=4)
+    assert error == pytest.approx(20 / (22 * 32))
+    assert held_out_error(image, [other, following, following], border=4) == pytest.approx(
+        2 * error
+    )
+    unseen = Observation(_Identity(), moved, np.where(moved > image, 0.0, seen))
+    assert held_out_error(image, [other, unseen], border=4) < 1e-20
 
 
 def test_below_the_floor_only_where_the_other_view_is_predicted_to_its_noise():
@@ -202,27 +220,43 @@ def test_the_option_accepts_the_rule():
         DeblurSettings(alpha="crossview")
 
 
-def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(scene, monkeypatch):
+@pytest.mark.parametrize(
+    ("observations", "scored", "unused"),
+    [
+        ("other-view", "prediction_error", "held_out_error"),
+        ("all", "held_out_error", "prediction_error"),  # the neighbouring frames observed
+    ],
+)
+def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(
+    scene, monkeypatch, observations, scored, unused
+):
     from stereodeblur.pipeline import frame as frame_module
 
     source = "sceneflow"  # the true motion's choice: the last test of this file
-    errors = []
-    real = frame_module.prediction_error
+    errors, held = [], []
+    real = getattr(frame_module, scored)
 
     def recorded(image, other, *, border):
+        held.append(other)
         errors.append(real(image, other, border=border))
         return errors[-1]
 
-    monkeypatch.setattr(frame_module, "prediction_error", recorded)
-    settings = DeblurSettings(**FAST, motion_source=source, alpha="held-out")
+    def not_called(*args, **kwargs):
+        raise AssertionError(f"{unused} is not the score with observations={observations!r}")
+
+    monkeypatch.setattr(frame_module, scored, recorded)
+    monkeypatch.setattr(frame_module, unused, not_called)
+    settings = DeblurSettings(
+        **FAST, motion_source=source, alpha="held-out", observations=observations
+    )
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    auto = deblur_stereo_frame(
-        scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha="auto")
-    ).frames["left"]
+    if observations == "all":  # the other view's and both neighbouring frames' observations
+        assert all(len(observed) == 3 for observed in held)
+    auto = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha="auto")).frames["left"]
     candidates = [auto.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > auto.alpha)]
     _searched_as_held_out(errors, len(candidates))
     assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
-    fixed = DeblurSettings(**FAST, motion_source=source, alpha=chosen.alpha)
+    fixed = replace(settings, alpha=chosen.alpha)
     expected = deblur_stereo_frame(scene, 1, settings=fixed).frames["left"]
     np.testing.assert_array_equal(chosen.image, expected.image)
 
@@ -312,6 +346,7 @@ def _scripted_held_out(scene, monkeypatch, factors, errors, paper=None):
         return next(errors)
 
     monkeypatch.setattr(frame_module, "prediction_error", scripted)
+    monkeypatch.setattr(frame_module, "held_out_error", scripted)  # the neighbours observed
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     return len(calls), chosen.alpha, grid
 
@@ -408,7 +443,8 @@ def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkey
     upwards = iter([1.0, 2.0])  # the floor beats the grid above it
     downwards = iter([0.9, 0.5, 0.25, 0.3])  # the floor's, then down to a rise
     monkeypatch.setattr(frame_module, "below_floor", tried)
-    monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(upwards))
+    for score in ("prediction_error", "held_out_error"):
+        monkeypatch.setattr(frame_module, score, lambda *a, border: next(upwards))
     monkeypatch.setattr(frame_module, "observed_error", lambda *a, border: next(downwards))
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert gated == [(auto.alpha, 0.9)]
@@ -430,7 +466,8 @@ def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", (auto.alpha * 2,))
     upwards = iter([1.0, 2.0])
     monkeypatch.setattr(frame_module, "below_floor", lambda *args: ())
-    monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(upwards))
+    for score in ("prediction_error", "held_out_error"):
+        monkeypatch.setattr(frame_module, score, lambda *a, border: next(upwards))
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     assert chosen.alpha == auto.alpha
 

@@ -22,6 +22,13 @@ pipeline's ``_alpha_choice_solve``). ``'cross-view'`` takes
 :data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
 whole grid (``benchmarks/study_alpha_choice.py``).
 
+With the neighbouring frames observed (``observations='neighbours'``/``'all'``) an estimated
+motion's candidates are scored instead by the untrimmed errors of the other view's and the
+neighbouring frames' observations of the view, summed (:func:`held_out_error`; the data
+weights leave out what they cannot see): a motion error that both views share, which the
+other view's prediction cannot see, shows in the neighbouring frames, and the trimmed error
+drops exactly the pixels it spoils (issue 12, stop 46).
+
 Where the floor predicts best, ``'held-out'`` asks whether the trust's raise was needed: it
 predicts the other view once more, through the other view's observation of this view (the
 data term of ``observations='other-view'``), over every pixel that observation sees with a
@@ -60,10 +67,11 @@ from ..settings import (
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 8
+RULES_VERSION = 11
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results (9 and 10 were candidates of stops 41 and 42, not adopted: a later
-rule takes 11): 8 since stop 38 (the search goes past small bumps; a motion the
+cached benchmark results (9 and 10 were candidates of stops 41 and 42, not adopted): 11 since
+stop 46 (with the neighbouring frames observed, candidates scored by :func:`held_out_error`),
+8 since stop 38 (the search goes past small bumps; a motion the
 range guard rejects over the whole view at the paper's alpha is rejected above it), 7 since
 stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
 range-guarded before it is scored), 5 since stop 29 (the noise gate below the floor), 1 before
@@ -212,6 +220,13 @@ def observed_error(image: np.ndarray, observation: Observation, *, border: int) 
     error = pixel_errors(predicted, observation.blurred, border=border)
     counted = inner(observation.weights, border) >= HELD_OUT_MIN_WEIGHT
     return float(error[counted].mean()) if counted.any() else float("inf")
+
+
+def held_out_error(image: np.ndarray, observations, *, border: int) -> float:
+    """Sum of the :func:`observed_error` of every observation in ``observations`` (the other
+    view's and the neighbouring frames' observations of this view): what ``'held-out'``
+    scores an estimated motion's candidates by where the neighbouring frames are observed."""
+    return sum(observed_error(image, o, border=border) for o in observations)
 
 
 def below_floor(floor: float, error: float, sigma: float) -> tuple[float, ...]:

@@ -25,6 +25,7 @@ from .alpha import (
     below_floor,
     candidates,
     choose,
+    held_out_error,
     observed_error,
     other_view,
     prediction_error,
@@ -245,7 +246,8 @@ def _alpha_choice_solve(
     and keep the one chosen by predicting ``other`` (:func:`.alpha.candidates`,
     :func:`.alpha.searched`, :func:`.alpha.choose`; below the floor only through the noise
     gate, :func:`.alpha.below_floor`; with the true motion from the noise rule's alpha up,
-    scored by the other view's observation, :func:`.alpha.true_motion_choice`); with
+    scored by the other view's observation, :func:`.alpha.true_motion_choice`; with an
+    estimated motion and the neighbouring frames observed, by :func:`.alpha.held_out_error`); with
     ``observations``, solve once more with them at that alpha (the other view is then held
     out of the choice even where it is observed), the neighbouring frames weighed by how well
     the chosen estimate predicts them (:func:`~.observations.weighed_neighbours`). Every
@@ -281,9 +283,15 @@ def _alpha_choice_solve(
     judged = settings.range_guard and not observed
     rejected = _whole_view(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
 
+    held = [o.observation for o in observations if o.name in NEIGHBOURS]
+    if held and other.observation is not None:
+        held.append(other.observation)
+
     def score(image) -> float:
         if observed:
             return observed_error(image, other.observation, border=border)
+        if len(held) > 1:
+            return held_out_error(image, held, border=border)
         return prediction_error(image, other, border=border)
 
     runs, errors = [], []
