@@ -696,7 +696,8 @@ def report(rows, args, seconds: float) -> str:
         "",
         f"Command: `python benchmarks/calibrate_defaults.py {' '.join(sys.argv[1:])}`; "
         f"{seconds / 60:.1f} min wall time ({os.cpu_count()} cores, --jobs {args.jobs}, "
-        f"cached renders and columns reused); code {code_version()} at the end of the run.",
+        "renders and columns cached in --work reused where present); "
+        f"code {code_version()} at the end of the run.",
         "",
         split_note(args),
         "",
