@@ -60,7 +60,7 @@ import numpy as np
 
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
-from stereodeblur.pipeline.alpha import map_signature, rules_version
+from stereodeblur.pipeline.alpha import rules_version
 from stereodeblur.pipeline.motion import relabel_rule
 from stereodeblur.pipeline.observations import neighbours_version
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
@@ -229,8 +229,6 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
-    text = text.replace(f", alpha_map={settings.alpha_map}", "")
-    text += map_signature(settings) if rules else ""
     if relabel_rule(settings) is None:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     else:

@@ -220,15 +220,6 @@ RANGE_AREA = 0.02
 # not fitted: it keeps the 4 % region of a motion that pays off (test family_1003, +7.5 dB).
 RANGE_WHOLE = 0.1
 DEFAULT_RANGE_GUARD = True
-# A prior weight per pixel from the candidates' local prediction of the held-out observations
-# (DeblurSettings.alpha_map; stereodeblur.pipeline.alpha.prior_map). Off: on 18 training scenes
-# (train split 41-60, scene flow, 320x240) +0.05 dB over one alpha per view on average, worst
-# -0.38 dB, the worst gap to the best grid alpha 1.77 -> 2.10 dB (README, issue 12, stop 48).
-DEFAULT_ALPHA_MAP = False
-# Its window: Gaussian sigma as a share of the image width (4 px at 320x240).
-ALPHA_MAP_SIGMA = 4 / 320
-# Its softness: a candidate's weight falls by e for each 10 % its local error exceeds the least.
-ALPHA_MAP_TEMPERATURE = 0.1
 
 
 def range_guard_signature(settings) -> str:
@@ -358,12 +349,6 @@ class DeblurSettings:
         the further observations that see them dropped;
         :mod:`stereodeblur.deconv.intensity_range`); every pixel where such regions cover more
         than :data:`RANGE_WHOLE` of the frame. Default on; the paper has no such step.
-    alpha_map : bool
-        With ``alpha='held-out'`` or ``'cross-view'`` and further observations: the final solve
-        weighs the prior per pixel by the candidate alphas that predict the held-out
-        observations best around it (:func:`~stereodeblur.pipeline.alpha.prior_map`,
-        :data:`ALPHA_MAP_SIGMA`, :data:`ALPHA_MAP_TEMPERATURE`), not by the one chosen alpha
-        everywhere (:data:`DEFAULT_ALPHA_MAP`).
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -385,7 +370,6 @@ class DeblurSettings:
     boundary_flow: bool = DEFAULT_BOUNDARY_FLOW
     relabel_radius: int = RELABEL_RADIUS
     range_guard: bool = DEFAULT_RANGE_GUARD
-    alpha_map: bool = DEFAULT_ALPHA_MAP
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -443,8 +427,6 @@ class DeblurSettings:
             raise InputError(f"boundary_flow must be True or False, got {self.boundary_flow!r}")
         if not isinstance(self.range_guard, bool):
             raise InputError(f"range_guard must be True or False, got {self.range_guard!r}")
-        if not isinstance(self.alpha_map, bool):
-            raise InputError(f"alpha_map must be True or False, got {self.alpha_map!r}")
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(
                 f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"

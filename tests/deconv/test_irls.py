@@ -115,41 +115,6 @@ def test_one_irls_step_solves_the_weighted_normal_equations(box_blur, channels, 
         assert np.max(np.abs(got - expected)) < 2e-4
 
 
-def test_prior_weights_scale_the_prior_per_pixel(box_blur):
-    """Eq. 8 with ``alpha m(x)`` on each pixel's differences, against a sparse direct solve."""
-    height, width = 20, 24
-    rng = np.random.default_rng(2)
-    operator = box_blur((height, width), 3, 7, seed=2)
-    blurred = rng.random((height, width)).astype(np.float32)
-    scale = rng.uniform(0.0, 4.0, (height, width)).astype(np.float32)
-    alpha, exponent, epsilon = 0.05, 0.8, 0.01
-    result = deblur_irls(
-        blurred, operator, alpha=alpha, prior_weights=scale, num_irls=1, num_cg=400
-    )
-    a = operator.matrix.astype(np.float64)
-    dx, dy = difference_matrices(height, width)
-    flat = blurred.ravel().astype(np.float64)
-    m = scale.astype(np.float64).ravel()
-    rho_x = m * np.maximum(np.abs(dx @ flat), epsilon) ** (exponent - 2)
-    rho_y = m * np.maximum(np.abs(dy @ flat), epsilon) ** (exponent - 2)
-    normal = a.T @ a + alpha * (dx.T @ sp.diags(rho_x) @ dx + dy.T @ sp.diags(rho_y) @ dy)
-    expected = spla.spsolve(normal.tocsc(), a.T @ flat)
-    assert np.max(np.abs(result.image.ravel() - expected)) < 2e-4
-    # A uniform map is the scalar alpha it multiplies; the energy still does not increase.
-    uniform = deblur_irls(blurred, operator, alpha=alpha, prior_weights=np.full(scale.shape, 3.0))
-    scalar = deblur_irls(blurred, operator, alpha=3 * alpha)
-    np.testing.assert_allclose(uniform.image, scalar.image, atol=1e-5)
-    energies = np.array(
-        [
-            e.energy
-            for e in deblur_irls(
-                blurred, operator, alpha=alpha, prior_weights=scale, num_irls=6
-            ).history
-        ]
-    )
-    assert np.all(np.diff(energies) <= 1e-6 * energies[:-1])
-
-
 # --- recovery -----------------------------------------------------------------------------
 
 
@@ -357,10 +322,6 @@ def test_bad_input(box_blur):
         deblur_irls(image, operator, num_cg=2.5)
     with pytest.raises(InputError, match="blurred"):
         deblur_irls(np.zeros(16), operator)
-    with pytest.raises(InputError, match="prior_weights"):
-        deblur_irls(image, operator, prior_weights=np.full((16, 16), -1.0))
-    with pytest.raises(InputError, match="prior_weights"):
-        deblur_irls(image, operator, prior_weights=np.ones((15, 16)))
     with pytest.raises(InputError, match="update_weights"):
         deblur_irls(image, operator, num_irls=2, update_weights=lambda *args: np.ones((3, 3)))
 

@@ -16,10 +16,8 @@ from stereodeblur.pipeline.alpha import (
     below_floor,
     choose,
     held_out_error,
-    local_error,
     observed_error,
     prediction_error,
-    prior_map,
     searched,
     warp_to_other,
 )
@@ -35,15 +33,11 @@ from stereodeblur.settings import (
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
-# One alpha everywhere: the choice's tests compare with a solve at the chosen alpha.
-FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8, "alpha_map": False}
+FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8}
 
 
 class _Identity:
     def forward(self, image):
-        return image
-
-    def adjoint(self, image):
         return image
 
 
@@ -128,42 +122,6 @@ def test_the_held_out_error_sums_the_observations_errors_where_each_sees():
     assert held_out_error(image, [other, unseen], border=4) < 1e-20
 
 
-def test_the_local_error_is_the_windowed_error_where_each_observation_sees():
-    image = _texture((40, 60))
-    seen = np.ones((40, 60), np.float32)
-    moved = image.copy()
-    moved[:, 40:] += 0.1  # the observation disagrees on the right
-    error = local_error(image, [Observation(_Identity(), moved, seen)], sigma=2.0)
-    assert error.shape == (40, 60)
-    assert np.all(error[:, :30] < 1e-12)
-    np.testing.assert_allclose(error[:, 50:], 0.01, rtol=1e-5)
-    # Pixels an observation does not see do not count, and two observations add up.
-    blind = Observation(_Identity(), moved, np.where(moved > image, 0.0, seen))
-    assert np.all(local_error(image, [blind], sigma=2.0) < 1e-12)
-    twice = local_error(image, [Observation(_Identity(), moved, seen)] * 2, sigma=2.0)
-    np.testing.assert_allclose(twice, 2 * error)
-
-
-def test_the_prior_map_takes_each_regions_best_predicting_alpha():
-    truth = _texture((40, 80))
-    seen = np.ones((40, 80), np.float32)
-    observed = [Observation(_Identity(), truth, seen)]
-    left_right, right_right = truth.copy(), truth.copy()
-    left_right[:, 40:] += 0.2  # right only on the left half
-    right_right[:, :40] += 0.2  # right only on the right half
-    alphas = (1e-4, 1e-3)
-    relative = prior_map(
-        [left_right, right_right], alphas, 1e-3, observed, sigma=2.0, temperature=0.1
-    )
-    assert relative.dtype == np.float32 and relative.shape == (40, 80)
-    np.testing.assert_allclose(relative[:, :30], 0.1, rtol=1e-3)
-    np.testing.assert_allclose(relative[:, 50:], 1.0, rtol=1e-3)
-    assert np.all((relative >= 0.1 * (1 - 1e-6)) & (relative <= 1.0 + 1e-6))
-    # Where every candidate predicts as well, their geometric mean.
-    same = prior_map([truth, truth], alphas, 1e-3, observed, sigma=2.0, temperature=0.1)
-    np.testing.assert_allclose(same, np.sqrt(0.1), rtol=1e-5)
-
-
 def test_below_the_floor_only_where_the_other_view_is_predicted_to_its_noise():
     sigma = 0.005
     noise = alpha_from_sigma(sigma)
@@ -225,17 +183,15 @@ def scene(tmp_path_factory):
 
 @pytest.mark.parametrize("source", ["gt", "sceneflow"])
 def test_each_view_takes_the_grid_solution_it_chose(scene, source):
-    settings = DeblurSettings(**FAST, motion_source=source, alpha="cross-view")
-    chosen = deblur_stereo_frame(scene, 1, settings=settings)
-    mapped = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha_map=True))
+    chosen = deblur_stereo_frame(
+        scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha="cross-view")
+    )
     for view, frame in chosen.frames.items():
         assert frame.alpha in CROSS_VIEW_ALPHAS
-        fixed = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha=frame.alpha))
+        fixed = deblur_stereo_frame(
+            scene, 1, settings=DeblurSettings(**FAST, motion_source=source, alpha=frame.alpha)
+        )
         np.testing.assert_array_equal(frame.image, fixed.frames[view].image)
-        # The map weighs the prior per pixel in the final solve: same choice, another image.
-        assert mapped.frames[view].alpha == frame.alpha
-        assert np.all(np.isfinite(mapped.frames[view].image))
-        assert not np.array_equal(mapped.frames[view].image, frame.image)
 
 
 def test_one_view_is_the_stereo_frames_view(scene):

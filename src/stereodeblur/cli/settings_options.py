@@ -171,14 +171,6 @@ def _options() -> tuple[SettingOption, ...]:
             f"if over {RANGE_WHOLE * 100:g} %% of the frame (default: on; the paper has none)",
             switch=True,
         ),
-        SettingOption(
-            "alpha_map",
-            "--alpha-map",
-            "with --alpha held-out or cross-view and further observations: weigh the prior per "
-            "pixel by the candidate alphas that predict the held-out observations best around "
-            "it (default: off: the chosen alpha everywhere)",
-            switch=True,
-        ),
     )
 
 

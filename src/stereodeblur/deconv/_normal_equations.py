@@ -186,10 +186,8 @@ class _NormalEquations:
     :meth:`data_term` call.
     """
 
-    def __init__(
-        self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=(), scale=None
-    ):
-        self.b3, self.shape, self.scale = blurred3, shape, scale
+    def __init__(self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=()):
+        self.b3, self.shape = blurred3, shape
         self.own = _DataTerm(operator, blurred3, np.ones(shape[:2], np.float32), shape)
         self.extras = list(extras)
         self.alpha, self.exponent, self.epsilon = float(alpha), float(exponent), float(epsilon)
@@ -244,14 +242,7 @@ class _NormalEquations:
     def prior_term(self, estimate3d) -> float:
         """``(2 / p) alpha sum h_eps(d I)``; sets the prior weights of Eq. 7 at ``I``."""
         smoothness_weights(
-            estimate3d,
-            self.alpha,
-            self.exponent,
-            self.epsilon,
-            self.wx,
-            self.wy,
-            self.partial,
-            self.scale,
+            estimate3d, self.alpha, self.exponent, self.epsilon, self.wx, self.wy, self.partial
         )
         return 2.0 * self.alpha / self.exponent * float(self.partial.sum())
 

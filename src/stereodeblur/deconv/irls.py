@@ -105,15 +105,6 @@ def _check_anchor(anchor, plane) -> np.ndarray | None:
     return np.ascontiguousarray(beta) if beta.any() else None
 
 
-def _check_prior_weights(prior_weights, plane) -> np.ndarray | None:
-    if prior_weights is None:
-        return None
-    scale = np.asarray(prior_weights, dtype=np.float32)
-    if scale.shape != plane or not np.all(np.isfinite(scale) & (scale >= 0)):
-        raise InputError(f"prior_weights must be finite, >= 0 and of shape {plane}")
-    return np.ascontiguousarray(scale)
-
-
 def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.flags.writeable = False
@@ -158,7 +149,6 @@ def deblur_irls(
     num_cg: int = 25,
     update_weights: Callable | None = None,
     anchor: np.ndarray | None = None,
-    prior_weights: np.ndarray | None = None,
     initial: np.ndarray | None = None,
     observations=(),
     robust_scale: float | None = None,
@@ -211,9 +201,6 @@ def deblur_irls(
     anchor : ndarray, shape (H, W), optional
         ``beta(x) >= 0``: adds ``sum_x beta(x) || I(x) - B(x) ||^2`` to the energy, keeping
         the estimate near the blurred frame where the blur model is not trusted.
-    prior_weights : ndarray, shape (H, W), optional
-        ``m(x) >= 0``: the prior weight per pixel is ``alpha m(x)`` (a pixel's differences to
-        its right and lower neighbours take its ``m``); 1 everywhere by default.
     initial : ndarray, shape of ``blurred``, optional
         Starting estimate ``I^0`` (a warm start), in place of the blurred frame; only the
         starting point changes.
@@ -245,7 +232,6 @@ def deblur_irls(
             num_cg=int(num_cg),
             update_weights=update_weights,
             anchor=anchor,
-            prior_weights=prior_weights,
             initial=initial,
             observations=tuple(observations),
             robust_scale=robust_scale,
@@ -263,7 +249,6 @@ def _deblur(
     num_cg,
     update_weights,
     anchor,
-    prior_weights,
     initial,
     observations,
     robust_scale,
@@ -284,8 +269,7 @@ def _deblur(
         for o in observations
     ]
     beta = _check_anchor(anchor, plane)
-    scale = _check_prior_weights(prior_weights, plane)
-    system = _NormalEquations(b3, shape, operator, *settings, beta, extras, scale)
+    system = _NormalEquations(b3, shape, operator, *settings, beta, extras)
     system.set_weights(w)
     estimate = b3.copy() if initial is None else _check_image(initial, shape, "initial")
     history = [system.energy(0, estimate, None)]

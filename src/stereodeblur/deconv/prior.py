@@ -94,16 +94,9 @@ def gradient_adjoint(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
 # --- IRLS weights (Eq. 7) and the weighted Laplacian of Eq. 8 ---------------------------
 
 
-def smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial, scale=None) -> None:
-    """Eq. 7 weights of ``image`` into ``wx``, ``wy``; row sums of ``h_eps(d I)`` to ``partial``.
-
-    ``scale``, shape (H, W), optional: a factor per pixel on both (a pixel's differences to
-    its right and lower neighbours take its factor); 1 by default.
-    """
-    if scale is None:
-        scale = np.ones(image.shape[:2], np.float32)
-    factor = np.ascontiguousarray(scale, dtype=np.float32)
-    by_rows(_smoothness_range, image, image, alpha, exponent, epsilon, wx, wy, partial, factor)
+def smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial) -> None:
+    """Eq. 7 weights of ``image`` into ``wx``, ``wy``; row sums of ``h_eps(d I)`` to ``partial``."""
+    by_rows(_smoothness_range, image, image, alpha, exponent, epsilon, wx, wy, partial)
 
 
 def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
@@ -111,9 +104,7 @@ def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
     by_rows(_laplacian_rows, x, x, wx, wy, out, partial)
 
 
-def _smoothness_range(
-    first, last, image, alpha, exponent, epsilon, wx, wy, partial, factor
-) -> None:
+def _smoothness_range(first, last, image, alpha, exponent, epsilon, wx, wy, partial) -> None:
     """:func:`smoothness_weights` on rows ``first .. last - 1``.
 
     ``max(|d I|, eps)`` by numba, its power by numpy (whose ``power`` is vectorised, unlike
@@ -131,7 +122,7 @@ def _smoothness_range(
         0.5 * exponent * epsilon ** (exponent - 2.0),
         (1.0 - 0.5 * exponent) * epsilon**exponent,
     )
-    _smoothness_rows(first, last, image, floor, scale, small, wx, wy, partial, factor)
+    _smoothness_rows(first, last, image, floor, scale, small, wx, wy, partial)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -168,10 +159,9 @@ def _smoothed_power(difference, rho, floor, small):  # pragma: no cover - compil
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _smoothness_rows(
-    first, last, image, floor, scale, small, wx, wy, partial, factor
+    first, last, image, floor, scale, small, wx, wy, partial
 ):  # pragma: no cover - compiled
-    """Scale ``rho`` in ``wx``, ``wy`` to the weights ``alpha f rho``; row sums of ``f h_eps(d I)``
-    (``f``: the pixel's ``factor``).
+    """Scale ``rho`` in ``wx``, ``wy`` to the weights ``alpha rho``; row sums of ``h_eps(d I)``.
 
     ``h_eps(c) = |c|^p`` for ``|c| >= eps`` and ``(p/2) eps^(p-2) c^2 + (1 - p/2) eps^p``
     below: the function whose IRLS majoriser the weights are. The weights are 0 in the
@@ -188,20 +178,17 @@ def _smoothness_rows(
     h = np.empty(cols * channels)
     for i in range(first, last):
         x_row, wx_row, wy_row = x2[i], wx2[i], wy2[i]
-        f_row = factor[i]
         for k in range(inner):
-            f = f_row[k // c]
-            h[k] = f * _smoothed_power(x_row[k + c] - x_row[k], wx_row[k], floor, small)
-            wx_row[k] = scale * f * wx_row[k]
+            h[k] = _smoothed_power(x_row[k + c] - x_row[k], wx_row[k], floor, small)
+            wx_row[k] = scale * wx_row[k]
         for k in range(inner, size):
             h[k] = 0.0
             wx_row[k] = 0.0
         if i < rows - 1:
             x_down = x2[i + 1]
             for k in range(size):
-                f = f_row[k // c]
-                h[k] += f * _smoothed_power(x_down[k] - x_row[k], wy_row[k], floor, small)
-                wy_row[k] = scale * f * wy_row[k]
+                h[k] += _smoothed_power(x_down[k] - x_row[k], wy_row[k], floor, small)
+                wy_row[k] = scale * wy_row[k]
         else:
             for k in range(size):
                 wy_row[k] = 0.0

@@ -241,7 +241,7 @@ def _signature(column: Column, settings) -> dict:
     before those options stay valid; the versions of the alpha rules that predict the other
     view, of the relabelling rule, of the true motion's fit and of the neighbouring frames'
     data terms where they are observed)."""
-    from ..pipeline.alpha import map_signature, rules_version
+    from ..pipeline.alpha import rules_version
     from ..pipeline.motion import relabel_rule
     from ..pipeline.observations import neighbours_version
     from ..sceneflow.from_gt import FIT_VERSION
@@ -257,9 +257,6 @@ def _signature(column: Column, settings) -> dict:
     ):
         if fields[name] == old:
             del fields[name]
-    del fields["alpha_map"]
-    if map_signature(own):
-        fields["alpha_map"] = map_signature(own).strip()
     if relabel_rule(own) is None:
         del fields["relabel_radius"]
     else:

@@ -41,11 +41,6 @@ while the same error falls (:func:`below_floor`).
 With the true motion (``motion_source='gt'``) there is no motion error for the trust to
 guard against: the floor is the noise rule's alpha, and every candidate is scored by that
 untrimmed prediction through the other view's observation (:func:`true_motion_choice`).
-
-The chosen alpha holds for the whole view only as a reference: with further observations and
-``alpha_map`` (off by default), the final solve weighs the prior per pixel by the candidates that
-predict the held-out observations best around it (:func:`local_error`, :func:`prior_map`), so
-that a region where the motion fails can take more regularisation than one where it holds.
 """
 
 from __future__ import annotations
@@ -54,7 +49,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import gaussian_filter, map_coordinates
+from scipy.ndimage import map_coordinates
 
 from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
@@ -71,9 +66,6 @@ from ..settings import (
 
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
-
-MIN_COUNT = 1e-3
-"""Least window share of counted pixels :func:`local_error` divides by (none seen nearby)."""
 
 RULES_VERSION = 11
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
@@ -97,19 +89,6 @@ def rules_version(settings) -> int | None:
     if not predicts or settings.motion_source == "initial-flow":
         return None
     return TRUE_MOTION_RULES_VERSION if true_motion_choice(settings) else RULES_VERSION
-
-
-def map_signature(settings) -> str:
-    """What the prior weight map (``settings.alpha_map``) adds to a cached result's signature:
-    its constants where it acts (an alpha chosen by prediction, further observations), else
-    nothing."""
-    from ..settings import ALPHA_MAP_SIGMA, ALPHA_MAP_TEMPERATURE
-
-    if not settings.alpha_map or rules_version(settings) is None:
-        return ""
-    if settings.observations == "single":
-        return ""
-    return f" alpha map {ALPHA_MAP_SIGMA:g} {ALPHA_MAP_TEMPERATURE:g}"
 
 
 def true_motion_choice(settings) -> bool:
@@ -248,38 +227,6 @@ def held_out_error(image: np.ndarray, observations, *, border: int) -> float:
     view's and the neighbouring frames' observations of this view): what ``'held-out'``
     scores an estimated motion's candidates by where the neighbouring frames are observed."""
     return sum(observed_error(image, o, border=border) for o in observations)
-
-
-def local_error(image: np.ndarray, observations, *, sigma: float) -> np.ndarray:
-    """Squared error per pixel of ``image``'s grid, shape (H, W): each observation's error of
-    prediction (mean over channels, over the pixels it sees with a data weight of at least
-    :data:`HELD_OUT_MIN_WEIGHT`) carried back to the pixels its exposures sample by its
-    operator's adjoint, averaged over a Gaussian window of ``sigma`` px, summed over
-    ``observations``."""
-    total = np.zeros(image.shape[:2])
-    for o in observations:
-        error = pixel_errors(o.operator.forward(image), o.blurred, border=0)
-        seen = (o.weights >= HELD_OUT_MIN_WEIGHT).astype(np.float32)
-        counted = gaussian_filter(o.operator.adjoint(seen).astype(np.float64), sigma)
-        carried = o.operator.adjoint((error * seen).astype(np.float32)).astype(np.float64)
-        total += gaussian_filter(carried, sigma) / np.maximum(counted, MIN_COUNT)
-    return np.maximum(total, 0.0)  # cubic taps have negative lobes
-
-
-def prior_map(
-    images, alphas, alpha: float, observations, *, sigma: float, temperature: float
-) -> np.ndarray:
-    """The prior weight per pixel relative to ``alpha``, float32, shape (H, W): the geometric
-    mean of the candidate ``alphas`` (solved as ``images``), each weighted by
-    ``exp(-(e / e_min - 1) / temperature)``, ``e`` its :func:`local_error` over ``sigma`` px
-    and ``e_min`` the least of the candidates' there, then smoothed over ``sigma`` px: each
-    region takes the alphas that predict its held-out ``observations`` best."""
-    errors = np.stack([local_error(image, observations, sigma=sigma) for image in images])
-    least = np.maximum(errors.min(axis=0), np.finfo(np.float64).tiny)
-    weights = np.exp(-(errors / least - 1.0) / temperature)
-    logs = np.log(np.asarray(alphas, np.float64))[:, None, None]
-    mean = (weights * logs).sum(axis=0) / weights.sum(axis=0)
-    return np.exp(gaussian_filter(mean, sigma) - np.log(alpha)).astype(np.float32)
 
 
 def below_floor(floor: float, error: float, sigma: float) -> tuple[float, ...]:

@@ -44,7 +44,6 @@ def solve(
         num_cg=settings.num_cg,
         update_weights=terms.update,
         anchor=terms.anchor,
-        prior_weights=terms.prior_weights,
         observations=[o.observation for o in observations],
         robust_scale=OBSERVATION_ROBUST_SCALE if observations else None,
         progress=progress,

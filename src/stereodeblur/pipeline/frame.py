@@ -19,13 +19,7 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import (
-    ALPHA_MAP_SIGMA,
-    ALPHA_MAP_TEMPERATURE,
-    CROSS_VIEW_ALPHAS,
-    PAPER_ALPHA,
-    DeblurSettings,
-)
+from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
 from .alpha import (
     OtherView,
     below_floor,
@@ -35,7 +29,6 @@ from .alpha import (
     observed_error,
     other_view,
     prediction_error,
-    prior_map,
     searched,
     true_motion_choice,
 )
@@ -257,9 +250,7 @@ def _alpha_choice_solve(
     estimated motion and the neighbouring frames observed, by :func:`.alpha.held_out_error`); with
     ``observations``, solve once more with them at that alpha (the other view is then held
     out of the choice even where it is observed), the neighbouring frames weighed by how well
-    the chosen estimate predicts them (:func:`~.observations.weighed_neighbours`) and, with
-    ``settings.alpha_map``, the prior weighed per pixel by the candidates' local prediction
-    (:func:`.alpha.prior_map`). Every
+    the chosen estimate predicts them (:func:`~.observations.weighed_neighbours`). Every
     solution is range-guarded (:func:`~.deconvolve.guarded_solve`) before it is scored, so
     that the choice judges what the view's result would be; with an estimated motion the
     guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
@@ -327,20 +318,6 @@ def _alpha_choice_solve(
             observations = _weighed(observations, image, other.observation, border, progress)
         report(progress, f"alpha {terms.alpha:g} with the further observations")
         terms = replace(terms, update=copy.deepcopy(base.update))
-        scored = held if len(held) > 1 and not observed else [other.observation]
-        if settings.alpha_map and len(solved) > 1 and scored[0] is not None:
-            report(progress, "alpha map")
-            tried = {c.terms.alpha: c.image for c in solved.values()}
-            sigma = ALPHA_MAP_SIGMA * blurred.shape[1]
-            relative = prior_map(
-                list(tried.values()),
-                list(tried),
-                terms.alpha,
-                scored,
-                sigma=sigma,
-                temperature=ALPHA_MAP_TEMPERATURE,
-            )
-            terms = replace(terms, prior_weights=relative)
         result, unexplained = guarded_solve(
             blurred,
             operator,

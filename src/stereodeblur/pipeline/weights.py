@@ -43,9 +43,6 @@ class DataTerms:
         The prior weight of Eq. 6 (:func:`resolve_alpha`).
     noise_sigma : float
         The blurred frame's noise estimate the alpha and the trust were computed from.
-    prior_weights : ndarray, float32, shape (H, W), or None
-        For ``deblur_irls(prior_weights=...)``: the prior weight per pixel relative to
-        ``alpha`` (:func:`~.alpha.prior_map`), or None (``alpha`` everywhere).
     """
 
     weights: np.ndarray
@@ -54,7 +51,6 @@ class DataTerms:
     trust: np.ndarray | None
     alpha: float
     noise_sigma: float
-    prior_weights: np.ndarray | None = None
 
     @property
     def steps(self) -> tuple:
