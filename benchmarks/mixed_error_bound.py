@@ -1,0 +1,196 @@
+"""How low the error in the mixed pixels can go (issue 13): the true motion, its
+occlusion-aware operator and the hidden samples' true values, with today's solver.
+
+Run from the repository root::
+
+    python benchmarks/mixed_error_bound.py --work /tmp/paperbench --size 640x480 \
+        --output benchmarks/results/mixed_error_bound_640x480.md
+
+Frame 1 (left) of ``bench paper``'s object scenes (the same work folder layout), the default
+settings but the motion: the true motion (``--motion-source gt``), so the occlusion-aware
+homography operator (cubic taps), the default data weights, the other view and the
+neighbouring frames observed (``--observations all``), 4 x 25 iterations, at each alpha of
+:data:`ALPHAS`. Rows: *true motion* (as the pipeline solves it at that alpha) and *oracle fill*
+(the samples of the view's own exposure that show a surface the frame centre hides dropped
+from its operator, their true value, the mean of the instantaneous renders there, subtracted
+from its blurred frame, and those pixels no longer down-weighted; the further observations
+as before). Per scene the alpha with the lowest gt/mixed error is kept: with the oracles, no
+deblurrer of this model reaches a lower error there.
+"""
+
+from __future__ import annotations
+
+import copy
+import sys
+import time
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from stereodeblur.blur.homography import _inputs
+from stereodeblur.blur.operator import SparseBlur
+from stereodeblur.blur.trajectories import cubic_taps, homography_positions
+from stereodeblur.blur.visibility import HIDDEN, hidden_fraction, sceneflow_visibility
+from stereodeblur.deconv.irls import deblur_irls
+from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view
+from stereodeblur.deconv.weights import hidden_weights
+from stereodeblur.evaluation import paper_bench
+from stereodeblur.evaluation.metrics import border_for, masked_mse, psnr
+from stereodeblur.io.scene import open_scene
+from stereodeblur.pipeline import build_view_operator, data_terms, read_window, stereo_motion
+from stereodeblur.pipeline.observations import view_observations
+from stereodeblur.settings import OBSERVATION_ROBUST_SCALE, DeblurSettings
+from stereodeblur.synth.objects import OBJECT_SCENES, object_setup
+from stereodeblur.synth.render import render_instant
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from hidden_fill_bound import finish, parse, scenes_folder  # noqa: E402
+
+ALPHAS = (1e-4, 3e-4, 1e-3)
+ROWS = ("true motion", "oracle fill")
+FRAME = 1
+VIEWS = ("left", "right")
+
+
+def hidden_part(sceneflow, exposure, num_samples, visible, setup):
+    """The operator's part made of the hidden samples (cubic taps at the own segment's
+    positions, clamped as the operator clamps them) and the true mean of those samples,
+    ``(H, W, 3)``, from the instantaneous renders."""
+    homographies, labels, n = _inputs(sceneflow, exposure, num_samples, 0.0)
+    height, width = sceneflow.shape
+    hidden = np.moveaxis(visible == HIDDEN, 0, -1).reshape(-1, n)
+    pixel, sample = np.nonzero(hidden)
+    positions = homography_positions(homographies, labels).reshape(-1, n, 2)[pixel, sample]
+    index, weight, valid = cubic_taps(positions, (height, width), border="clamp")
+    rows = np.broadcast_to(pixel[:, None], index.shape)
+    size = height * width
+    matrix = sp.coo_matrix(
+        (weight[valid] / n, (rows[valid], index[valid])), shape=(size, size)
+    ).tocsr()
+    truth = np.zeros((height, width, 3))
+    fractions = exposure.sample_fractions(n)
+    for k in range(n):
+        shown = visible[k] == HIDDEN
+        if shown.any():
+            instant = render_instant(
+                setup.objects, setup.camera, "left", (width, height), FRAME + fractions[k]
+            )
+            truth[shown] += instant.image[shown] / n
+    return matrix, truth
+
+
+def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
+    """``{row: (psnr, gt/mixed mse, alpha)}`` at the alpha of least gt/mixed error."""
+    scene = open_scene(root)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        window = read_window(scene, FRAME, VIEWS, settings)
+        motions = stereo_motion(scene, window, VIEWS, settings).views
+        operators = {v: build_view_operator(window, motions[v], settings) for v in VIEWS}
+        fixed = replace(settings, alpha="auto")
+        terms = {v: data_terms(scene, window, v, operators[v], fixed) for v in VIEWS}
+    weights = {v: terms[v].weights for v in VIEWS}
+    observations = view_observations(window, "left", motions, operators, weights, settings)
+    sf, exposure, n = motions["left"].sceneflow, window.exposure, settings.num_samples
+    visible = sceneflow_visibility(sf, exposure, n)
+    share = hidden_fraction(visible)
+    assert np.array_equal(share, operators["left"].hidden), "not the pipeline's visibility"
+    today = operators["left"].operator
+    setup = object_setup(name, size=(sf.shape[1], sf.shape[0]))
+    part, fill = hidden_part(sf, exposure, n, visible, setup)
+    dropped = (today.matrix - part).tocsr()
+    sums = np.asarray(dropped.sum(axis=1)).ravel()
+    assert np.abs(sums - (1 - share.ravel())).max() < 1e-4, "hidden samples do not match"
+    blurred = window.blurred("left").astype(np.float64)
+    own = terms["left"].weights
+    outside = leaves_view(motions["left"].flow_forward, motions["left"].flow_backward,
+                          exposure.duty_cycle)  # fmt: skip
+    unhidden = np.where(outside, OUTSIDE_WEIGHT, 1.0).astype(np.float32)
+    assert np.allclose(own, unhidden * hidden_weights(share)), "not the pipeline's weights"
+    problems = {
+        "true motion": (today, blurred, own),
+        "oracle fill": (
+            SparseBlur(dropped.astype(np.float32), today.shape),
+            blurred - fill,
+            unhidden,
+        ),
+    }
+    truth = scene.read_gt_sharp("left", FRAME).astype(np.float64)
+    mixed = scene.read_gt_mixed("left", FRAME)
+    border = border_for(truth.shape[1])
+    out = {}
+    for key, (op, data, w) in problems.items():
+        best = None
+        for alpha in ALPHAS:
+            result = deblur_irls(
+                data,
+                op,
+                weights=w,
+                alpha=alpha,
+                num_irls=settings.num_irls,
+                num_cg=settings.num_cg,
+                update_weights=copy.deepcopy(terms["left"].update),
+                anchor=terms["left"].anchor,
+                observations=[o.observation for o in observations],
+                robust_scale=OBSERVATION_ROBUST_SCALE if observations else None,
+                initial=blurred,
+            )
+            image = np.clip(result.image, 0.0, 1.0)
+            score = (
+                psnr(image, truth, border=border),
+                masked_mse(image, truth, mixed, border=border),
+                alpha,
+            )
+            if best is None or score[1] < best[1]:
+                best = score
+        out[key] = best
+    return out
+
+
+def main(argv=None) -> int:
+    args = parse(argv, __doc__.split("\n", 1)[0])
+    names = args.scenes.split(",") if args.scenes else [
+        n + s for n in OBJECT_SCENES for s in ("", "_noisy")
+    ]  # fmt: skip
+    folder = scenes_folder(args)
+    settings = DeblurSettings(motion_source="gt")
+    start = time.perf_counter()
+    paper_bench.render_missing(folder, names, args.size)
+    results = {}
+    for name in names:
+        results[name] = evaluate(folder / name, name, settings)
+        print(name, results[name], flush=True)
+    minutes = (time.perf_counter() - start) / 60
+    lines = [
+        "# The error in the mixed pixels with the true motion and the hidden samples' true values",
+        "",
+        f"Command: `python benchmarks/mixed_error_bound.py {' '.join(sys.argv[1:])}`; "
+        f"{minutes:.1f} min. Frame 1, left view, the default settings with the true motion "
+        "(occlusion-aware operator, cubic taps, the other view and the neighbouring frames "
+        f"observed), each row at the alpha of {', '.join(f'{a:g}' for a in ALPHAS)} with the "
+        "least gt/mixed error. Per cell: PSNR dB / gt/mixed MSE x 1000 (2.5 % border) / alpha.",
+        "",
+        "| scene | " + " | ".join(ROWS) + " |",
+        "|---|" + "---|" * len(ROWS),
+    ]
+    for name, r in results.items():
+        cells = [f"{r[k][0]:.2f} / {1000 * r[k][1]:.2f} / {r[k][2]:g}" for k in ROWS]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    for label, suffix in (("noiseless", False), ("noisy", True)):
+        group = [r for name, r in results.items() if name.endswith("_noisy") == suffix]
+        if group:
+            cells = [
+                f"{np.mean([r[k][0] for r in group]):.2f} / "
+                f"{1000 * np.mean([r[k][1] for r in group]):.2f}"
+                for k in ROWS
+            ]
+            lines.append(f"| **mean, {label}** | " + " | ".join(cells) + " |")
+    return finish(lines, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
