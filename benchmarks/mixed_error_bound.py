@@ -10,12 +10,12 @@ Frame 1 (left) of ``bench paper``'s object scenes (the same work folder layout),
 settings but the motion: the true motion (``--motion-source gt``), so the occlusion-aware
 homography operator (cubic taps), the default data weights, the other view and the
 neighbouring frames observed (``--observations all``), 4 x 25 iterations, at each alpha of
-:data:`ALPHAS`. Rows: *true motion* (as the pipeline solves it at that alpha) and *oracle fill*
-(the samples of the view's own exposure that show a surface the frame centre hides dropped
-from its operator, their true value, the mean of the instantaneous renders there, subtracted
-from its blurred frame, and those pixels no longer down-weighted; the further observations
-as before). Per scene the alpha with the lowest gt/mixed error is kept: with the oracles, no
-deblurrer of this model reaches a lower error there.
+:data:`ALPHAS`, no range guard. Rows: *true motion* (the pipeline's operator, data weights
+and observations) and *oracle fill* (the samples of the view's own exposure that show a
+surface the frame centre hides dropped from its operator, their true value, the mean of the
+instantaneous renders there, subtracted from its blurred frame, and those pixels no longer
+down-weighted; the further observations as before). Per scene the alpha with the least
+gt/mixed error is kept: what this model and solver reach there with an exact motion.
 """
 
 from __future__ import annotations
