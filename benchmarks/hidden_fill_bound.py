@@ -36,8 +36,9 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from stereodeblur.blur.homography import homography_blur
+from stereodeblur.blur.homography import _inputs, homography_blur
 from stereodeblur.blur.operator import SparseBlur
+from stereodeblur.blur.trajectories import bilinear_taps, cubic_taps, homography_positions, is_cubic
 from stereodeblur.blur.visibility import HIDDEN, hidden_fraction, sceneflow_visibility
 from stereodeblur.cli.base import add_size, size_text
 from stereodeblur.deconv.irls import deblur_irls
@@ -57,42 +58,37 @@ ROWS = ("today", "oracle fill", "oracle fill, down-weighted", "renormalised")
 FRAME = 1
 
 
-def hidden_samples(sceneflow, visible, fractions, setup) -> tuple[sp.csr_matrix, np.ndarray]:
-    """The operator's part made of hidden samples (bilinear taps at the own segment's
-    positions, clamped as the operator clamps them) and the true mean of those samples,
-    ``(H, W, 3)``, from the instantaneous renders."""
+def hidden_samples(sceneflow, exposure, num_samples, visible, setup, interpolation="bilinear"):
+    """The operator's part made of hidden samples (``interpolation``'s taps at the own
+    segment's positions, clamped as the operator clamps them) and the true mean of those
+    samples, ``(H, W, 3)``, from the instantaneous renders."""
+    homographies, labels, n = _inputs(sceneflow, exposure, num_samples, 0.0)
     height, width = sceneflow.shape
-    n = len(fractions)
-    homographies = sceneflow.homographies(fractions)
-    ys, xs = np.mgrid[0:height, 0:width]
-    rows, cols, vals = [], [], []
+    pixel, sample = np.nonzero(np.moveaxis(visible == HIDDEN, 0, -1).reshape(-1, n))
+    positions = homography_positions(homographies, labels).reshape(-1, n, 2)[pixel, sample]
+    taps = cubic_taps if is_cubic(interpolation) else bilinear_taps
+    index, weight, valid = taps(positions, (height, width), border="clamp")
+    rows = np.broadcast_to(pixel[:, None], index.shape)
+    size = height * width
+    matrix = sp.coo_matrix(
+        (weight[valid] / n, (rows[valid], index[valid])), shape=(size, size)
+    ).tocsr()
     truth = np.zeros((height, width, 3))
+    fractions = exposure.sample_fractions(n)
     for k in range(n):
         hidden = visible[k] == HIDDEN
-        if not hidden.any():
-            continue
-        x, y = xs[hidden].astype(np.float64), ys[hidden].astype(np.float64)
-        points = np.stack([x, y, np.ones_like(x)])
-        q = np.einsum("nij,jn->ni", homographies[sceneflow.labels[hidden], k], points)
-        px = np.clip(q[:, 0] / q[:, 2], 0, width - 1)
-        py = np.clip(q[:, 1] / q[:, 2], 0, height - 1)
-        x0 = np.minimum(np.floor(px).astype(np.int64), width - 2)
-        y0 = np.minimum(np.floor(py).astype(np.int64), height - 2)
-        fx, fy = px - x0, py - y0
-        row = ys[hidden] * width + xs[hidden]
-        for dx, dy, w in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
-                          (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):  # fmt: skip
-            rows.append(row)
-            cols.append((y0 + dy) * width + x0 + dx)
-            vals.append(w / n)
-        at = FRAME + fractions[k]
-        instant = render_instant(setup.objects, setup.camera, "left", (width, height), at)
-        truth[hidden] += instant.image[hidden] / n
-    size = height * width
-    matrix = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size)
-    )
+        if hidden.any():
+            at = FRAME + fractions[k]
+            instant = render_instant(setup.objects, setup.camera, "left", (width, height), at)
+            truth[hidden] += instant.image[hidden] / n
     return matrix, truth
+
+
+def object_names(args) -> list[str]:
+    """``args.scenes`` or every object scene of ``bench paper``, noiseless and noisy."""
+    if args.scenes:
+        return args.scenes.split(",")
+    return [n + s for n in OBJECT_SCENES for s in ("", "_noisy")]
 
 
 def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
@@ -107,7 +103,7 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
     visible = sceneflow_visibility(sf, exposure, n)
     today = homography_blur(sf, exposure, num_samples=n, visible=visible).matrix
     setup = object_setup(name, size=(width, height))
-    hidden_part, fill = hidden_samples(sf, visible, exposure.sample_fractions(n), setup)
+    hidden_part, fill = hidden_samples(sf, exposure, n, visible, setup)
     dropped = (today - hidden_part).tocsr()
     sums = np.asarray(dropped.sum(axis=1)).ravel()
     share = hidden_fraction(visible)
@@ -226,9 +222,7 @@ def report(results: dict, argv, minutes: float) -> list[str]:
 
 def main(argv=None) -> int:
     args = parse(argv, __doc__.split("\n", 1)[0])
-    names = args.scenes.split(",") if args.scenes else [
-        n + s for n in OBJECT_SCENES for s in ("", "_noisy")
-    ]  # fmt: skip
+    names = object_names(args)
     folder = scenes_folder(args)
     settings = DeblurSettings(
         motion_source="gt", boundary_weights="none", observations="single",

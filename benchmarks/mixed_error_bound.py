@@ -28,12 +28,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 
-from stereodeblur.blur.homography import _inputs
 from stereodeblur.blur.operator import SparseBlur
-from stereodeblur.blur.trajectories import cubic_taps, homography_positions
-from stereodeblur.blur.visibility import HIDDEN, hidden_fraction, sceneflow_visibility
+from stereodeblur.blur.visibility import hidden_fraction, sceneflow_visibility
 from stereodeblur.deconv.irls import deblur_irls
 from stereodeblur.deconv.trust import OUTSIDE_WEIGHT, leaves_view
 from stereodeblur.deconv.weights import hidden_weights
@@ -43,44 +40,22 @@ from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import build_view_operator, data_terms, read_window, stereo_motion
 from stereodeblur.pipeline.observations import view_observations
 from stereodeblur.settings import OBSERVATION_ROBUST_SCALE, DeblurSettings
-from stereodeblur.synth.objects import OBJECT_SCENES, object_setup
-from stereodeblur.synth.render import render_instant
+from stereodeblur.synth.objects import object_setup
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from hidden_fill_bound import finish, parse, scenes_folder  # noqa: E402
+from hidden_fill_bound import (  # noqa: E402
+    finish,
+    hidden_samples,
+    object_names,
+    parse,
+    scenes_folder,
+)
 
 ALPHAS = (1e-4, 3e-4, 1e-3)
 ROWS = ("true motion", "oracle fill")
 FRAME = 1
 VIEWS = ("left", "right")
-
-
-def hidden_part(sceneflow, exposure, num_samples, visible, setup):
-    """The operator's part made of the hidden samples (cubic taps at the own segment's
-    positions, clamped as the operator clamps them) and the true mean of those samples,
-    ``(H, W, 3)``, from the instantaneous renders."""
-    homographies, labels, n = _inputs(sceneflow, exposure, num_samples, 0.0)
-    height, width = sceneflow.shape
-    hidden = np.moveaxis(visible == HIDDEN, 0, -1).reshape(-1, n)
-    pixel, sample = np.nonzero(hidden)
-    positions = homography_positions(homographies, labels).reshape(-1, n, 2)[pixel, sample]
-    index, weight, valid = cubic_taps(positions, (height, width), border="clamp")
-    rows = np.broadcast_to(pixel[:, None], index.shape)
-    size = height * width
-    matrix = sp.coo_matrix(
-        (weight[valid] / n, (rows[valid], index[valid])), shape=(size, size)
-    ).tocsr()
-    truth = np.zeros((height, width, 3))
-    fractions = exposure.sample_fractions(n)
-    for k in range(n):
-        shown = visible[k] == HIDDEN
-        if shown.any():
-            instant = render_instant(
-                setup.objects, setup.camera, "left", (width, height), FRAME + fractions[k]
-            )
-            truth[shown] += instant.image[shown] / n
-    return matrix, truth
 
 
 def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
@@ -101,7 +76,7 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
     assert np.array_equal(share, operators["left"].hidden), "not the pipeline's visibility"
     today = operators["left"].operator
     setup = object_setup(name, size=(sf.shape[1], sf.shape[0]))
-    part, fill = hidden_part(sf, exposure, n, visible, setup)
+    part, fill = hidden_samples(sf, exposure, n, visible, setup, "cubic")
     dropped = (today.matrix - part).tocsr()
     sums = np.asarray(dropped.sum(axis=1)).ravel()
     assert np.abs(sums - (1 - share.ravel())).max() < 1e-4, "hidden samples do not match"
@@ -153,9 +128,7 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
 
 def main(argv=None) -> int:
     args = parse(argv, __doc__.split("\n", 1)[0])
-    names = args.scenes.split(",") if args.scenes else [
-        n + s for n in OBJECT_SCENES for s in ("", "_noisy")
-    ]  # fmt: skip
+    names = object_names(args)
     folder = scenes_folder(args)
     settings = DeblurSettings(motion_source="gt")
     start = time.perf_counter()
