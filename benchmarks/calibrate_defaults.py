@@ -794,6 +794,46 @@ def run_all(function, tasks, jobs: int) -> list:
         return list(pool.map(function, tasks))
 
 
+def run_study(name: str, function, report, scenes: int, description: str, argv=None) -> int:
+    """Run a study on the protocol's scenes: ``function((kind, seed, size, work))`` returns a
+    scene's ``(name, entry)`` (cached in ``WORK/WxH/NAME_SPLIT.json``, :func:`cached_rows`),
+    ``report(rows, work, args, minutes)`` its report's lines, written with the rows as
+    ``benchmarks/results/NAME_SPLIT_WxH.md`` and ``.json``. Arguments: ``--split``, ``--size``,
+    ``--scenes`` (default ``scenes``), ``--skip``, ``--jobs``, ``--work``; ``description``
+    their help's."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--split", choices=("train", "test"), default="train")
+    parser.add_argument("--size", default="320x240")
+    parser.add_argument("--scenes", type=int, default=scenes)
+    parser.add_argument("--skip", type=int, default=0)
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--work", default="/tmp/calib/work")
+    args = parser.parse_args(argv)
+    size, work = tuple(int(v) for v in args.size.split("x")), Path(args.work) / args.size
+    start = time.perf_counter()
+    names = scene_list(args.split, args.scenes, KINDS, args.skip)
+    path = work / f"{name}_{args.split}.json"
+    rows = cached_rows(function, names, path, lambda k, s: (k, s, size, work), args.jobs)
+    lines = report(rows, work, args, (time.perf_counter() - start) / 60)
+    output = Path(f"benchmarks/results/{name}_{args.split}_{args.size}.md")
+    atomic_write_text(output, "\n".join(lines) + "\n")
+    atomic_write_text(output.with_suffix(".json"), json.dumps(rows, indent=1))
+    print("\n".join(lines))
+    return 0
+
+
+def cached_rows(function, names, path: Path, task, jobs: int) -> dict:
+    """A study's ``{name: entry}`` for the scenes ``names`` (``(kind, seed)``), in their order:
+    read from the JSON file ``path``, and for the scenes not in it yet ``function(task(kind,
+    seed))`` (which returns ``(name, entry)``) in ``jobs`` processes, ``path`` written after."""
+    rows = json.loads(path.read_text()) if path.is_file() else {}
+    todo = [task(kind, seed) for kind, seed in names if f"{kind}_{seed:04d}" not in rows]
+    for name, entry in run_all(function, todo, jobs):
+        rows[name] = entry
+        atomic_write_text(path, json.dumps(rows, indent=1))
+    return {f"{kind}_{seed:04d}": rows[f"{kind}_{seed:04d}"] for kind, seed in names}
+
+
 def _start_worker(parent: int) -> None:
     """A worker of :func:`run_all`: single-threaded, ending with ``parent``. The threads are
     set by numba's and OpenCV's calls: a ``NUMBA_NUM_THREADS`` set in this process's

@@ -28,11 +28,8 @@ other view's observation and a noise gate".
 
 from __future__ import annotations
 
-import argparse
 import copy
-import json
 import sys
-import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -42,8 +39,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import calibrate_defaults as protocol  # noqa: E402
-
-from stereodeblur.io.outputs import atomic_write_text  # noqa: E402
 
 GRID = protocol.ALPHAS
 RATIOS = (None, 2.0, 4.0, 8.0, 16.0, 24.0)
@@ -235,30 +230,7 @@ def report(rows: dict, work: Path, args, minutes: float) -> list[str]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--split", choices=("train", "test"), default="train")
-    parser.add_argument("--size", default="320x240")
-    parser.add_argument("--scenes", type=int, default=40)
-    parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--work", default="/tmp/calib/work")
-    args = parser.parse_args(argv)
-    size = tuple(int(v) for v in args.size.split("x"))
-    work = Path(args.work) / args.size
-    start = time.perf_counter()
-    path = work / f"held_out_{args.split}.json"
-    rows = json.loads(path.read_text()) if path.is_file() else {}
-    names = protocol.scene_list(args.split, args.scenes, protocol.KINDS)
-    todo = [(k, s, size, Path(args.work)) for k, s in names if f"{k}_{s:04d}" not in rows]
-    for name, entry in protocol.run_all(grid_errors, todo, args.jobs):
-        rows[name] = entry
-        atomic_write_text(path, json.dumps(rows, indent=1))
-    rows = {f"{k}_{s:04d}": rows[f"{k}_{s:04d}"] for k, s in names}
-    lines = report(rows, work, args, (time.perf_counter() - start) / 60)
-    output = Path(f"benchmarks/results/held_out_{args.split}_{args.size}.md")
-    atomic_write_text(output, "\n".join(lines) + "\n")
-    atomic_write_text(output.with_suffix(".json"), json.dumps(rows, indent=1))
-    print("\n".join(lines))
-    return 0
+    return protocol.run_study("held_out", grid_errors, report, 40, __doc__.split("\n", 1)[0], argv)
 
 
 if __name__ == "__main__":

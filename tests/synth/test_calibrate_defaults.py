@@ -1,6 +1,7 @@
 """The protocol runner's bookkeeping (benchmarks/calibrate_defaults.py), on made-up figures."""
 
 import importlib.util
+import json
 import math
 import sys
 from pathlib import Path
@@ -245,3 +246,29 @@ def test_two_runs_render_a_shared_scene_once(runner, tmp_path, monkeypatch):
         thread.join()
     assert calls == ["family_0003"] and len(roots) == 2 and roots[0] == roots[1]
     assert (roots[0] / "gt" / "family.json").is_file()
+
+
+def test_a_study_keeps_its_scenes_and_computes_each_once(runner, tmp_path, monkeypatch):
+    """run_study: the scenes of the split in order, each computed once (later runs read the
+    cache under WORK/WxH), the report and the rows written under benchmarks/results."""
+    monkeypatch.chdir(tmp_path)
+    computed = []
+
+    def entry(task):
+        kind, seed, size, _ = task
+        computed.append((kind, seed))
+        return f"{kind}_{seed:04d}", {"size": list(size)}
+
+    def report(rows, work, args, minutes):
+        return [f"{args.split} {name} {row['size']}" for name, row in rows.items()]
+
+    common = ["--size", "64x48", "--work", str(tmp_path / "w")]
+    assert runner.run_study("probe", entry, report, 5, "a probe", [*common, "--skip", "2"]) == 0
+    assert runner.run_study("probe", entry, report, 5, "a probe", common) == 0
+    first = runner.scene_list("train", 5, runner.KINDS, skip=2)
+    assert computed == [*first, ("family", 0), ("street", 0)]  # the rest read from the cache
+    names = [f"{k}_{s:04d}" for k, s in runner.scene_list("train", 5, runner.KINDS)]
+    written = (tmp_path / "benchmarks/results/probe_train_64x48.md").read_text().splitlines()
+    assert written == [f"train {name} [64, 48]" for name in names]
+    cache = json.loads((tmp_path / "w" / "64x48" / "probe_train.json").read_text())
+    assert set(cache) == set(names) | {f"{k}_{s:04d}" for k, s in first}

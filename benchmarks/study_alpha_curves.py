@@ -1,0 +1,296 @@
+"""What `--alpha held-out` sees on every alpha (issue 12, stop 50): its scores against the truth.
+
+Run from the repository root after ``calibrate_defaults.py`` has computed the grid columns of
+the same scenes, split, size and ``--work`` (their PSNRs score the choices)::
+
+    python benchmarks/study_alpha_curves.py --split train --scenes 20 --size 320x240
+
+For every scene and motion source, frame 1 of the left view is deblurred with the default
+settings and the calibration's stored motion, by the pipeline itself, but with its alpha choice
+opened up: the candidates are the choice's floor and every alpha of
+:data:`calibrate_defaults.ALPHAS` (those above the floor first, in the default's order), none
+stops the search, the choice is the floor and nothing goes below it. Recorded per candidate
+(each a solution of the view's own frame, as the choice makes them): the score the default
+gives it (with the scene flow the sum of the held-out observations' errors, with the true motion
+the other view's observation's), each held-out observation's error, and its PSNR against the
+truth; and the floor, the noise estimate and the PSNR of the solution at the floor with every
+observation. The default's own choice is replayed from these records with the pipeline's
+functions (:func:`replay_default`) and checked against the calibration's default column; the
+other rows are rules that the records allow to compare. Every choice is scored with the PSNR
+of the calibration's grid column of its alpha (the floor: the solution at the floor recorded
+here). Written: ``benchmarks/results/alpha_curves_SPLIT_WxH.md`` and ``.json``.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import calibrate_defaults as protocol  # noqa: E402
+
+GRID = protocol.ALPHAS
+
+
+def curves(task) -> tuple[str, dict]:
+    """The records of one scene, per motion source (see the module's docstring)."""
+    from stereodeblur.evaluation.metrics import border_for
+    from stereodeblur.io.scene import open_scene
+
+    kind, seed, size, work = task
+    root = protocol.ensure_scene(kind, seed, size, work)
+    scene = open_scene(root)
+    truth = scene.read_gt_sharp("left", protocol.FRAME)
+    border = border_for(truth.shape[1])
+    cache = work / "results" / root.name
+    return root.name, {s: source_record(scene, s, truth, border, cache) for s in protocol.MOTIONS}
+
+
+def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
+    """One scene's and motion source's record (see the module's docstring)."""
+    import stereodeblur.pipeline.alpha as rules
+    import stereodeblur.pipeline.frame as frame
+    from stereodeblur.evaluation.metrics import psnr
+    from stereodeblur.evaluation.motion_cache import cached_motion
+    from stereodeblur.evaluation.paper_bench import deblur_with_motion
+
+    out = {"alphas": [], "score": [], "errors": [], "psnr": [], "gate": None}
+
+    def kept(image, errors):
+        out["errors"].append(errors)
+        out["psnr"].append(psnr(image, truth, border=border))
+        return sum(errors)
+
+    def held_out_error(image, observations, *, border):
+        return kept(image, [rules.observed_error(image, o, border=border) for o in observations])
+
+    def observed_error(image, observation, *, border):
+        return kept(image, [rules.observed_error(image, observation, border=border)])
+
+    def prediction_error(image, other, *, border):
+        return kept(image, [rules.prediction_error(image, other, border=border)])
+
+    def choose(errors, rule, alphas):
+        out["alphas"], out["score"] = [float(a) for a in alphas], list(errors)
+        return 0
+
+    def below_floor(floor, error, sigma):
+        out["gate"] = {"floor": float(floor), "sigma": float(sigma)}
+        return ()
+
+    def candidates(rule, floor):
+        above = [a for a in GRID if a > floor]
+        return (floor, *above, *(a for a in reversed(GRID) if a < floor))
+
+    patches = {
+        "held_out_error": held_out_error,
+        "observed_error": observed_error,
+        "prediction_error": prediction_error,
+        "choose": choose,
+        "below_floor": below_floor,
+        "candidates": candidates,
+        "searched": lambda rule, errors: False,
+    }
+    saved = {name: getattr(frame, name) for name in patches}
+    settings = protocol.Column("default", source).settings()
+    motion, _, _ = cached_motion(scene, source, protocol.unmoved(source), cache)
+    try:
+        for name, function in patches.items():
+            setattr(frame, name, function)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = deblur_with_motion(scene, protocol.FRAME, settings, motion)
+    finally:
+        for name, function in saved.items():
+            setattr(frame, name, function)
+    count = len(out["alphas"])  # the gate's calls come after the candidates'
+    out["errors"], out["psnr"] = out["errors"][:count], out["psnr"][:count]
+    out["floor_psnr"] = psnr(result.image, truth, border=border)
+    out["rule"] = "true motion" if rules.true_motion_choice(settings) else "estimated"
+    return out
+
+
+def replay_default(record: dict) -> float:
+    """The alpha the default's choice takes on these records: the floor and the grid above it
+    while :func:`~stereodeblur.pipeline.alpha.searched` lets it, then
+    :func:`~stereodeblur.pipeline.alpha.choose`; at the floor, the noise gate
+    (:func:`~stereodeblur.pipeline.alpha.below_floor`) on the other view's error (the last
+    held-out observation), over the grid alphas only (the noise rule's own alpha, not on the
+    grid, is not recorded)."""
+    from stereodeblur.pipeline.alpha import below_floor, choose, searched
+
+    alphas, floor = record["alphas"], record["alphas"][0]
+    order = [0] + [k for k, a in enumerate(alphas) if a > floor]
+    errors = []
+    for k in order:
+        errors.append(record["score"][k])
+        if searched("held-out", errors):
+            break
+    best = choose(errors, "held-out", [alphas[k] for k in order[: len(errors)]])
+    chosen = order[best]
+    gate = record["gate"]
+    if best == 0 and gate is not None:
+        other = {a: e[-1] for a, e in zip(alphas, record["errors"], strict=True)}
+        previous = other[floor]
+        for alpha in below_floor(gate["floor"], previous, gate["sigma"]):
+            if alpha not in other or other[alpha] >= previous:
+                break
+            previous, chosen = other[alpha], alphas.index(alpha)
+    return alphas[chosen]
+
+
+def snap(alpha: float) -> int:
+    """Index of the grid alpha nearest ``alpha`` (in log)."""
+    return int(np.argmin([abs(np.log(alpha / a)) for a in GRID]))
+
+
+def step_up(alpha: float, steps: int = 1) -> float:
+    """The grid alpha ``steps`` above the grid alpha nearest ``alpha``, at most the largest."""
+    return GRID[min(snap(alpha) + steps, len(GRID) - 1)]
+
+
+def normalised(record: dict) -> float:
+    """The candidate (the floor and above) with the least sum of each held-out observation's
+    error relative to its least over the candidates: every observation counts alike, not by
+    the size of its error (a neighbour the motion explains badly outweighs the rest)."""
+    alphas, floor = record["alphas"], record["alphas"][0]
+    errors = np.array(record["errors"])
+    relative = (errors / errors[[k for k, a in enumerate(alphas) if a >= floor]].min(0)).sum(1)
+    return min((a for a in alphas if a >= floor), key=lambda a: relative[alphas.index(a)])
+
+
+def single_best(record: dict) -> float:
+    """The candidate whose own-frame solution is nearest the truth (an oracle)."""
+    return record["alphas"][int(np.argmax(record["psnr"]))]
+
+
+RULES = (
+    ("the default (replayed)", replay_default),
+    ("the default, one grid step up", lambda r: step_up(replay_default(r))),
+    (
+        "least score from the floor up, no tie rule",
+        lambda r: min(
+            (a for a in r["alphas"] if a >= r["alphas"][0]),
+            key=lambda a: r["score"][r["alphas"].index(a)],
+        ),
+    ),
+    ("least sum of relative errors from the floor up", normalised),
+    ("oracle: the own-frame solution nearest the truth", single_best),
+    ("oracle: the same, one grid step up", lambda r: step_up(single_best(r))),
+)
+"""Rows of the report: label and the rule (a record's chosen alpha)."""
+
+
+def grid_psnrs(work: Path, name: str, source: str) -> dict | None:
+    """The calibration's cached PSNRs of the default column (``'default'``, with its alpha)
+    and of the grid columns (by alpha); None if one is missing."""
+    cache = work / "results" / name
+    out = {}
+    for key, overrides in [("default", {})] + [(protocol.alpha_key(a), {"alpha": a}) for a in GRID]:
+        column = protocol.Column(key, source, overrides)
+        path = cache / f"{source}_{key}.json"
+        data = protocol._cached(path, protocol._signature(column.settings()))
+        if data is None:
+            return None
+        out[overrides.get("alpha", "default")] = data["psnr"]
+        if key == "default":
+            out["default alpha"] = data["alpha"]
+    return out
+
+
+def scored(record: dict, psnrs: dict, alpha: float) -> float:
+    """PSNR of the solution with every observation at ``alpha``: the grid column's, the floor's
+    recorded one."""
+    return record["floor_psnr"] if alpha == record["alphas"][0] else psnrs[alpha]
+
+
+def report(rows: dict, work: Path, args, minutes: float) -> list[str]:
+    lines = [
+        f"# `held-out`'s scores on every alpha: {args.split} split, {args.size}, "
+        f"{len(rows)} scenes",
+        "",
+        f"Command: `python benchmarks/study_alpha_curves.py {' '.join(sys.argv[1:])}`; "
+        f"{minutes:.1f} min (records cached under --work are reused); code "
+        f"{protocol.code_version()}. Every choice scored with the PSNR of the solution with every "
+        "observation at its alpha (the calibration's grid column; the floor's solved here). "
+        "dB below the best grid alpha: mean, worst scene, scenes more than 1.5 dB below.",
+        "",
+        "| rule | true motion: mean | worst | > 1.5 dB | scene flow: mean | worst | > 1.5 dB |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    table = {
+        source: [
+            (name, entry[source], psnrs)
+            for name, entry in rows.items()
+            if (psnrs := grid_psnrs(work, name, source)) is not None
+        ]
+        for source in protocol.MOTIONS
+    }
+    for label, rule in RULES:
+        cells = []
+        for source in protocol.MOTIONS:
+            gaps = [
+                (max(psnrs[a] for a in GRID) - scored(record, psnrs, rule(record)), name)
+                for name, record, psnrs in table[source]
+            ]
+            if not gaps:
+                cells += ["–"] * 3
+                continue
+            values = np.array([g for g, _ in gaps])
+            worst = max(gaps)
+            cells += [
+                f"{values.mean():.2f}",
+                f"{worst[0]:.2f} ({worst[1]})",
+                f"{(values > 1.5).sum()}",
+            ]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    matched = [
+        np.isclose(replay_default(record), psnrs["default alpha"], rtol=1e-6)
+        for source in protocol.MOTIONS
+        for _, record, psnrs in table[source]
+    ]
+    lines.append("")
+    for source in protocol.MOTIONS:
+        steps = [
+            snap(max(GRID, key=lambda a: psnrs[a])) - snap(single_best(record))
+            for _, record, psnrs in table[source]
+        ]
+        if steps:
+            lines.append(
+                f"- {source}: the best alpha with every observation lies above the best own-frame "
+                f"solution's on {sum(k > 0 for k in steps)} scenes, on it on "
+                f"{sum(k == 0 for k in steps)}, below on {sum(k < 0 for k in steps)} "
+                f"(grid steps: {', '.join(f'{k:+d}' for k in steps)})."
+            )
+    lines += [
+        "",
+        f"The replayed default took the calibration's alpha on {sum(matched)} of {len(matched)}.",
+        "",
+        "Per scene: the best alpha with every observation (grid), the best own-frame solution "
+        "(oracle), the least score, the default's alpha replayed and in the calibration.",
+        "",
+        "| scene | motion | best (all observations) | best own frame | least score | "
+        "default replayed | default (calibration) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for source in protocol.MOTIONS:
+        for name, record, psnrs in table[source]:
+            best = max(GRID, key=lambda a: psnrs[a])
+            least = record["alphas"][int(np.argmin(record["score"]))]
+            lines.append(
+                f"| {name} | {source} | {best:g} | {single_best(record):g} | {least:g} | "
+                f"{replay_default(record):.3g} | {psnrs['default alpha']:.3g} |"
+            )
+    return lines
+
+
+def main(argv=None) -> int:
+    return protocol.run_study("alpha_curves", curves, report, 20, __doc__.split("\n", 1)[0], argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
