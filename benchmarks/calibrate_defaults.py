@@ -809,6 +809,8 @@ def run_study(name: str, function, report, scenes: int, description: str, argv=N
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--work", default="/tmp/calib/work")
     args = parser.parse_args(argv)
+    if args.skip < 0 or args.skip % len(KINDS):
+        parser.error(f"--skip must be a multiple of {len(KINDS)}, got {args.skip}")
     size, work = tuple(int(v) for v in args.size.split("x")), Path(args.work) / args.size
     start = time.perf_counter()
     names = scene_list(args.split, args.scenes, KINDS, args.skip)

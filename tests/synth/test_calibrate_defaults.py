@@ -272,3 +272,5 @@ def test_a_study_keeps_its_scenes_and_computes_each_once(runner, tmp_path, monke
     assert written == [f"train {name} [64, 48]" for name in names]
     cache = json.loads((tmp_path / "w" / "64x48" / "probe_train.json").read_text())
     assert set(cache) == set(names) | {f"{k}_{s:04d}" for k, s in first}
+    with pytest.raises(SystemExit):
+        runner.run_study("probe", entry, report, 5, "a probe", [*common, "--skip", "3"])
