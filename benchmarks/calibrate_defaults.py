@@ -794,6 +794,24 @@ def run_all(function, tasks, jobs: int) -> list:
         return list(pool.map(function, tasks))
 
 
+def nearest_alpha(alpha: float) -> int:
+    """Index of the grid alpha (:data:`ALPHAS`) nearest ``alpha``, in log."""
+    return int(np.argmin([abs(np.log(alpha / a)) for a in ALPHAS]))
+
+
+def cached_columns(work: Path, name: str, columns) -> list[dict] | None:
+    """The cached results of ``columns`` on scene ``name`` under ``work`` (as
+    :func:`cached_column` stores them), None if one is missing: a study's reading."""
+    out = []
+    for column in columns:
+        path = work / "results" / name / f"{column.motion_source}_{column.key}.json"
+        data = _cached(path, _signature(column.settings()))
+        if data is None:
+            return None
+        out.append(data)
+    return out
+
+
 def run_study(name: str, function, report, scenes: int, description: str, argv=None) -> int:
     """Run a study on the protocol's scenes: ``function((kind, seed, size, work))`` returns a
     scene's ``(name, entry)`` (cached in ``WORK/WxH/NAME_SPLIT.json``, :func:`cached_rows`),

@@ -143,14 +143,9 @@ def replay_default(record: dict) -> float:
     return alphas[chosen]
 
 
-def snap(alpha: float) -> int:
-    """Index of the grid alpha nearest ``alpha`` (in log)."""
-    return int(np.argmin([abs(np.log(alpha / a)) for a in GRID]))
-
-
 def step_up(alpha: float, steps: int = 1) -> float:
     """The grid alpha ``steps`` above the grid alpha nearest ``alpha``, at most the largest."""
-    return GRID[min(snap(alpha) + steps, len(GRID) - 1)]
+    return GRID[min(protocol.nearest_alpha(alpha) + steps, len(GRID) - 1)]
 
 
 def normalised(record: dict) -> float:
@@ -186,20 +181,16 @@ RULES = (
 
 
 def grid_psnrs(work: Path, name: str, source: str) -> dict | None:
-    """The calibration's cached PSNRs of the default column (``'default'``, with its alpha)
-    and of the grid columns (by alpha); None if one is missing."""
-    cache = work / "results" / name
-    out = {}
-    for key, overrides in [("default", {})] + [(protocol.alpha_key(a), {"alpha": a}) for a in GRID]:
-        column = protocol.Column(key, source, overrides)
-        path = cache / f"{source}_{key}.json"
-        data = protocol._cached(path, protocol._signature(column.settings()))
-        if data is None:
-            return None
-        out[overrides.get("alpha", "default")] = data["psnr"]
-        if key == "default":
-            out["default alpha"] = data["alpha"]
-    return out
+    """The calibration's cached PSNRs of the default column (``'default'``, its alpha
+    ``'default alpha'``) and of the grid columns (by alpha); None if one is missing."""
+    grid = [protocol.Column(protocol.alpha_key(a), source, {"alpha": a}) for a in GRID]
+    found = protocol.cached_columns(work, name, [protocol.Column("default", source), *grid])
+    if found is None:
+        return None
+    default, *rest = found
+    return {"default": default["psnr"], "default alpha": default["alpha"]} | {
+        alpha: data["psnr"] for alpha, data in zip(GRID, rest, strict=True)
+    }
 
 
 def scored(record: dict, psnrs: dict, alpha: float) -> float:
@@ -256,7 +247,8 @@ def report(rows: dict, work: Path, args, minutes: float) -> list[str]:
     lines.append("")
     for source in protocol.MOTIONS:
         steps = [
-            snap(max(GRID, key=lambda a: psnrs[a])) - snap(single_best(record))
+            protocol.nearest_alpha(max(GRID, key=lambda a: psnrs[a]))
+            - protocol.nearest_alpha(single_best(record))
             for _, record, psnrs in table[source]
         ]
         if steps:

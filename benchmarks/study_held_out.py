@@ -123,11 +123,6 @@ def grid_errors(task) -> tuple[str, dict]:
     return root.name, out
 
 
-def snap(alpha: float) -> int:
-    """Index of the grid alpha nearest to ``alpha`` (in log)."""
-    return int(np.argmin([abs(np.log(alpha / a)) for a in GRID]))
-
-
 def choice(
     entry: dict, key: str, ratio: float | None, gate: str | None = None, start: str = "floor"
 ) -> int:
@@ -138,8 +133,8 @@ def choice(
     falls if the floor predicts best and its ``gate`` error is within ``ratio * 2 sigma^2``."""
     from stereodeblur.deconv.noise import alpha_from_sigma
 
-    errors, noise = entry[key], snap(alpha_from_sigma(entry["sigma"]))
-    floor = noise if start == "noise" else snap(entry["floor"])
+    errors, noise = entry[key], protocol.nearest_alpha(alpha_from_sigma(entry["sigma"]))
+    floor = noise if start == "noise" else protocol.nearest_alpha(entry["floor"])
     best = floor
     while best + 1 < len(GRID) and errors[best + 1] < errors[best]:
         best += 1
@@ -183,16 +178,9 @@ RULES = (
 
 def grid_psnrs(work: Path, name: str, source: str) -> np.ndarray | None:
     """The cached PSNRs of ``calibrate_defaults.py``'s grid columns, None if one is missing."""
-    cache = work / "results" / name
-    out = []
-    for alpha in GRID:
-        column = protocol.Column(protocol.alpha_key(alpha), source, {"alpha": alpha})
-        path = cache / f"{source}_{column.key}.json"
-        data = protocol._cached(path, protocol._signature(column.settings()))
-        if data is None:
-            return None
-        out.append(data["psnr"])
-    return np.array(out)
+    columns = [protocol.Column(protocol.alpha_key(a), source, {"alpha": a}) for a in GRID]
+    found = protocol.cached_columns(work, name, columns)
+    return None if found is None else np.array([data["psnr"] for data in found])
 
 
 def report(rows: dict, work: Path, args, minutes: float) -> list[str]:

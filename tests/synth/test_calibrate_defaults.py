@@ -274,3 +274,13 @@ def test_a_study_keeps_its_scenes_and_computes_each_once(runner, tmp_path, monke
     assert set(cache) == set(names) | {f"{k}_{s:04d}" for k, s in first}
     with pytest.raises(SystemExit):
         runner.run_study("probe", entry, report, 5, "a probe", [*common, "--skip", "3"])
+
+
+def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path):
+    assert [runner.nearest_alpha(a) for a in (2e-5, 1e-3, 5e-3, 1e-6)] == [1, 4, 5, 0]
+    column = runner.Column(runner.alpha_key(1e-4), "gt", {"alpha": 1e-4})
+    assert runner.cached_columns(tmp_path, "family_0000", [column]) is None
+    path = tmp_path / "results" / "family_0000" / f"gt_{column.key}.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"psnr": 30.0, "signature": runner._signature(column.settings())}))
+    assert runner.cached_columns(tmp_path, "family_0000", [column])[0]["psnr"] == 30.0
