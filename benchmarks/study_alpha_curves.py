@@ -1,11 +1,11 @@
-"""What `--alpha held-out` sees on every alpha (issue 12, stop 50): its scores against the truth.
+"""What `--alpha held-out` sees on every alpha (issue 12, stops 50-51): its scores and the truth.
 
 Run from the repository root after ``calibrate_defaults.py`` has computed the grid columns of
 the same scenes, split, size and ``--work`` (their PSNRs score the choices)::
 
     python benchmarks/study_alpha_curves.py --split train --scenes 20 --size 320x240
 
-For every scene and motion source, frame 1 of the left view is deblurred with the default
+For every scene and motion source, frame 1 of both views is deblurred with the default
 settings and the calibration's stored motion, by the pipeline itself, but with its alpha choice
 opened up: the candidates are the choice's floor and every alpha of
 :data:`calibrate_defaults.ALPHAS` (those above the floor first, in the default's order), none
@@ -13,16 +13,20 @@ stops the search, the choice is the floor and nothing goes below it. Recorded pe
 (each a solution of the view's own frame, as the choice makes them): the score the default
 gives it (with the scene flow the sum of the held-out observations' errors, with the true motion
 the other view's observation's), each held-out observation's error, and its PSNR against the
-truth; and the floor, the noise estimate and the PSNR of the solution at the floor with every
-observation. The default's own choice is replayed from these records with the pipeline's
-functions (:func:`replay_default`) and checked against the calibration's default column; the
-other rows are rules that the records allow to compare. Every choice is scored with the PSNR
+truth, its residual in its own blurred frame and its distance in the sharp domain from the
+right view's own-frame solution at its floor (:func:`sharp_distances`); per grid alpha, its
+solution's distance from the next one's; and the floor, the noise estimate and the PSNR of the
+left view's solution at the floor with every observation. The default's own choice is
+replayed from these records with the pipeline's functions (:func:`replay_default`) and checked
+against the calibration's default column; the other rows are rules that the records allow to
+compare. Every choice is scored with the PSNR
 of the calibration's grid column of its alpha (the floor: the solution at the floor recorded
 here). Written: ``benchmarks/results/alpha_curves_SPLIT_WxH.md`` and ``.json``.
 """
 
 from __future__ import annotations
 
+import itertools
 import sys
 import warnings
 from pathlib import Path
@@ -56,13 +60,21 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
     import stereodeblur.pipeline.frame as frame
     from stereodeblur.evaluation.metrics import psnr
     from stereodeblur.evaluation.motion_cache import cached_motion
-    from stereodeblur.evaluation.paper_bench import deblur_with_motion
+    from stereodeblur.pipeline import deblur_stereo_frame
 
-    out = {"alphas": [], "score": [], "errors": [], "psnr": [], "gate": None}
+    out = {"alphas": [], "score": [], "errors": [], "psnr": [], "own": [], "gate": None}
+    views = {}  # per view: its own operator and blurred frame, the other view, its candidates
 
     def kept(image, errors):
-        out["errors"].append(errors)
-        out["psnr"].append(psnr(image, truth, border=border))
+        view = views[views["current"]]
+        view["images"].append(image)
+        if views["current"] == "left":
+            out["errors"].append(errors)
+            out["psnr"].append(psnr(image, truth, border=border))
+            own = rules.pixel_errors(
+                view["operator"].forward(image), view["blurred"], border=border
+            )
+            out["own"].append(float(own.mean()))
         return sum(errors)
 
     def held_out_error(image, observations, *, border):
@@ -75,18 +87,29 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
         return kept(image, [rules.prediction_error(image, other, border=border)])
 
     def choose(errors, rule, alphas):
-        out["alphas"], out["score"] = [float(a) for a in alphas], list(errors)
+        if views["current"] == "left":
+            out["alphas"], out["score"] = [float(a) for a in alphas], list(errors)
         return 0
 
     def below_floor(floor, error, sigma):
-        out["gate"] = {"floor": float(floor), "sigma": float(sigma)}
+        if views["current"] == "left":
+            out["gate"] = {"floor": float(floor), "sigma": float(sigma)}
         return ()
 
     def candidates(rule, floor):
         above = [a for a in GRID if a > floor]
         return (floor, *above, *(a for a in reversed(GRID) if a < floor))
 
+    solve = frame._alpha_choice_solve
+
+    def opened(scene, window, view, blurred, operator, settings, other, *args):
+        views["current"] = view
+        views[view] = {"operator": operator.operator, "blurred": blurred, "other": other}
+        views[view]["images"] = []
+        return solve(scene, window, view, blurred, operator, settings, other, *args)
+
     patches = {
+        "_alpha_choice_solve": opened,
         "held_out_error": held_out_error,
         "observed_error": observed_error,
         "prediction_error": prediction_error,
@@ -98,20 +121,49 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
     saved = {name: getattr(frame, name) for name in patches}
     settings = protocol.Column("default", source).settings()
     motion, _, _ = cached_motion(scene, source, protocol.unmoved(source), cache)
+    sceneflow = motion.sceneflow if source == "sceneflow" else None
     try:
         for name, function in patches.items():
             setattr(frame, name, function)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            result = deblur_with_motion(scene, protocol.FRAME, settings, motion)
+            both = ("left", "right")
+            result = deblur_stereo_frame(
+                scene, protocol.FRAME, views=both, settings=settings, sceneflow=sceneflow
+            )
     finally:
         for name, function in saved.items():
             setattr(frame, name, function)
     count = len(out["alphas"])  # the gate's calls come after the candidates'
-    out["errors"], out["psnr"] = out["errors"][:count], out["psnr"][:count]
-    out["floor_psnr"] = psnr(result.image, truth, border=border)
+    for key in ("errors", "psnr", "own"):
+        out[key] = out[key][:count]
+    out["sharp"] = sharp_distances(views["left"], views["right"], count, border)
+    images = [views["left"]["images"][out["alphas"].index(a)] for a in GRID]
+    out["changes"] = [float(np.mean((b - a) ** 2)) for a, b in itertools.pairwise(images)]
+    out["floor_psnr"] = psnr(result.frames["left"].result.image, truth, border=border)
     out["rule"] = "true motion" if rules.true_motion_choice(settings) else "estimated"
     return out
+
+
+def sharp_distances(left: dict, right: dict, count: int, border: int) -> list[float]:
+    """Per left candidate: the mean of the :data:`SHARP_KEEP` smallest squared differences
+    from the right view's own-frame solution at its floor, carried to the left view through
+    the left view's disparity, over the pixels whose two disparities agree within 1 px."""
+    from stereodeblur.pipeline.alpha import inner, pixel_errors, warp_to_other
+
+    left_disparity = right["other"].disparity  # what the right view's choice predicts: the left
+    target = warp_to_other(right["images"][0], left_disparity, -1)
+    carried = warp_to_other(left["other"].disparity, left_disparity, -1)
+    agree = inner(np.abs(carried - left_disparity) < 1.0, border)
+    out = []
+    for image in left["images"][:count]:
+        error = np.sort(pixel_errors(image, target, border=border)[agree])
+        out.append(float(error[: max(1, int(SHARP_KEEP * error.size))].mean()))
+    return out
+
+
+SHARP_KEEP = 0.9
+"""Share of the pixels :func:`sharp_distances` keeps (occlusions and the warp's errors out)."""
 
 
 def replay_default(record: dict) -> float:
@@ -163,6 +215,27 @@ def single_best(record: dict) -> float:
     return record["alphas"][int(np.argmax(record["psnr"]))]
 
 
+def sharpest_agreement(record: dict) -> float:
+    """The candidate nearest the other view's own-frame solution at its floor, in the sharp
+    domain (:func:`sharp_distances`)."""
+    return record["alphas"][int(np.argmin(record["sharp"]))]
+
+
+def discrepancy(record: dict) -> float:
+    """The largest candidate whose residual in its own blurred frame is at most the other
+    view's least held-out error (the model's and the noise's error, estimated by the other
+    view; the smallest candidate if none)."""
+    other = min(errors[-1] for errors in record["errors"])
+    fitting = [a for a, own in zip(record["alphas"], record["own"], strict=True) if own <= other]
+    return max(fitting) if fitting else min(record["alphas"])
+
+
+def quasi_optimal(record: dict) -> float:
+    """The smaller of the two neighbouring grid alphas whose solutions differ least (the
+    quasi-optimality criterion, which needs no noise level)."""
+    return GRID[int(np.argmin(record["changes"]))]
+
+
 RULES = (
     ("the default (replayed)", replay_default),
     ("the default, one grid step up", lambda r: step_up(replay_default(r))),
@@ -174,6 +247,9 @@ RULES = (
         ),
     ),
     ("least sum of relative errors from the floor up", normalised),
+    ("sharp domain: nearest the other view's own-frame solution at its floor", sharpest_agreement),
+    ("discrepancy: largest own residual within the other view's least error", discrepancy),
+    ("quasi-optimality: least change to the next candidate", quasi_optimal),
     ("oracle: the own-frame solution nearest the truth", single_best),
     ("oracle: the same, one grid step up", lambda r: step_up(single_best(r))),
 )

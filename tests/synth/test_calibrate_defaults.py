@@ -284,3 +284,49 @@ def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path):
     path.parent.mkdir(parents=True)
     path.write_text(json.dumps({"psnr": 30.0, "signature": runner._signature(column.settings())}))
     assert runner.cached_columns(tmp_path, "family_0000", [column])[0]["psnr"] == 30.0
+
+
+@pytest.fixture()
+def curves(runner):
+    path = PATH.with_name("study_alpha_curves.py")
+    spec = importlib.util.spec_from_file_location("study_alpha_curves", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_sharp_domain_score_carries_the_right_view_to_the_left(curves):
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    left = rng.random((40, 64))
+    disparity = np.full(left.shape, 3.0)
+    right = np.roll(left, -3, axis=1)  # the right view's pixel u sees the left view's u + 3
+    other = SimpleNamespace(disparity=disparity)
+    views = {
+        "left": {"images": [left + 0.1, left, left[:, ::-1], left + 0.2], "other": other},
+        "right": {"images": [right], "other": other},
+    }
+    distances = curves.sharp_distances(views["left"], views["right"], 3, border=4)
+    assert len(distances) == 3
+    assert distances[1] < 1e-12 < distances[0]
+    assert distances[0] == pytest.approx(0.01)
+    assert distances[2] > 0.05
+
+
+def test_the_studied_rules_read_their_records(curves):
+    grid = list(curves.GRID)
+    record = {
+        "alphas": [2e-4, 3e-4, 1e-3, 3e-3, 1e-4, 3e-5, 1e-5],
+        "sharp": [5.0, 4.0, 3.0, 6.0, 7.0, 8.0, 9.0],
+        "own": [1.0, 2.0, 3.0, 4.0, 0.5, 0.2, 0.1],
+        "errors": [[9.0, e] for e in (2.5, 2.2, 2.4, 2.6, 2.7, 2.8, 3.0)],
+        "changes": [5.0, 4.0, 1.0, 2.0, 3.0],
+    }
+    assert curves.sharpest_agreement(record) == 1e-3
+    assert curves.discrepancy(record) == 3e-4  # the largest residual within 2.2
+    assert curves.quasi_optimal(record) == grid[2]
+    record["own"] = [9.0] * 7
+    assert curves.discrepancy(record) == 1e-5
