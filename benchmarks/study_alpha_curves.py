@@ -19,9 +19,9 @@ solution's distance from the next one's; and the floor, the noise estimate and t
 left view's solution at the floor with every observation. The default's own choice is
 replayed from these records with the pipeline's functions (:func:`replay_default`) and checked
 against the calibration's default column; the other rows are rules that the records allow to
-compare. Every choice is scored with the PSNR
-of the calibration's grid column of its alpha (the floor: the solution at the floor recorded
-here). Written: ``benchmarks/results/alpha_curves_SPLIT_WxH.md`` and ``.json``.
+compare. Every choice is scored with the PSNR of the calibration's grid column of its alpha (the
+floor: the solution at the floor recorded here). Written:
+``benchmarks/results/alpha_curves_SPLIT_WxH.md`` and ``.json``.
 """
 
 from __future__ import annotations
