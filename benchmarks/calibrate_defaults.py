@@ -151,6 +151,13 @@ def grid_prefix(key: str) -> str:
     return "" if handling is None else f"{handling}-"
 
 
+def grid_columns(source: str, prefix: str = "", overrides=None) -> list[Column]:
+    """The alpha grid's columns (:data:`ALPHAS`) for motion source ``source``, their keys
+    prefixed by ``prefix`` and their settings by ``overrides``."""
+    overrides = overrides or {}
+    return [Column(prefix + alpha_key(a), source, overrides | {"alpha": a}) for a in ALPHAS]
+
+
 def columns_for(motions, candidates=tuple(CANDIDATES), grid: bool = True) -> list[Column]:
     """Every column for the motion sources ``motions`` and the keys ``candidates`` of
     :data:`CANDIDATES` (and the alpha grid unless not ``grid``); the monocular one with
@@ -164,10 +171,9 @@ def columns_for(motions, candidates=tuple(CANDIDATES), grid: bool = True) -> lis
         out += [Column(key, source, dict(overrides)) for key, overrides in chosen.items()]
         if not grid:
             continue
-        out += [Column(alpha_key(a), source, {"alpha": a}) for a in ALPHAS]
+        out += grid_columns(source)
         for prefix in handlings:
-            overrides = {"boundary_weights": prefix[:-1]}
-            out += [Column(prefix + alpha_key(a), source, overrides | {"alpha": a}) for a in ALPHAS]
+            out += grid_columns(source, prefix, {"boundary_weights": prefix[:-1]})
     if "sceneflow" in motions:  # the estimated-motion method it competes with
         out.append(Column("monocular", "initial-flow"))
     return out
@@ -414,8 +420,8 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
     from ``cache`` when its settings match, else computed (the motion by :func:`motion_for`)
     and cached."""
     signature = _signature(column.settings())
-    path = cache / f"{column.motion_source}_{column.key}.json"
-    data = _cached(path, signature) or _cached_elsewhere(cache, column.motion_source, signature)
+    path = _column_path(cache, column)
+    data = _stored(path, column.motion_source, signature)
     if data is None:
         motion = motion_for(scene, column, motions, seconds, cache)
         data = run_column(scene, column, motion, truth) | {"signature": signature}
@@ -424,6 +430,17 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
         name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
         _log(f"{name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
     return data
+
+
+def _column_path(cache: Path, column: Column) -> Path:
+    """Where ``column``'s result on a scene is cached (``cache``: the scene's folder)."""
+    return cache / f"{column.motion_source}_{column.key}.json"
+
+
+def _stored(path: Path, source: str, signature: str) -> dict | None:
+    """A column's cached result: at ``path`` or, with the same ``signature``, under another
+    column of ``source`` in the same folder or its archive; None if there is none."""
+    return _cached(path, signature) or _cached_elsewhere(path.parent, source, signature)
 
 
 def run_scene(task) -> dict:
@@ -804,8 +821,8 @@ def cached_columns(work: Path, name: str, columns) -> list[dict] | None:
     :func:`cached_column` stores them), None if one is missing: a study's reading."""
     out = []
     for column in columns:
-        path = work / "results" / name / f"{column.motion_source}_{column.key}.json"
-        data = _cached(path, _signature(column.settings()))
+        path = _column_path(work / "results" / name, column)
+        data = _stored(path, column.motion_source, _signature(column.settings()))
         if data is None:
             return None
         out.append(data)

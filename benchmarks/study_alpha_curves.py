@@ -64,11 +64,12 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
 
     out = {"alphas": [], "score": [], "errors": [], "psnr": [], "own": [], "gate": None}
     views = {}  # per view: its own operator and blurred frame, the other view, its candidates
+    current = {"view": None}  # the view whose choice is being made
 
     def kept(image, errors):
-        view = views[views["current"]]
+        view = views[current["view"]]
         view["images"].append(image)
-        if views["current"] == "left":
+        if current["view"] == "left":
             out["errors"].append(errors)
             out["psnr"].append(psnr(image, truth, border=border))
             own = rules.pixel_errors(
@@ -87,12 +88,12 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
         return kept(image, [rules.prediction_error(image, other, border=border)])
 
     def choose(errors, rule, alphas):
-        if views["current"] == "left":
+        if current["view"] == "left":
             out["alphas"], out["score"] = [float(a) for a in alphas], list(errors)
         return 0
 
     def below_floor(floor, error, sigma):
-        if views["current"] == "left":
+        if current["view"] == "left":
             out["gate"] = {"floor": float(floor), "sigma": float(sigma)}
         return ()
 
@@ -103,9 +104,13 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
     solve = frame._alpha_choice_solve
 
     def opened(scene, window, view, blurred, operator, settings, other, *args):
-        views["current"] = view
-        views[view] = {"operator": operator.operator, "blurred": blurred, "other": other}
-        views[view]["images"] = []
+        current["view"] = view
+        views[view] = {
+            "operator": operator.operator,
+            "blurred": blurred,
+            "other": other,
+            "images": [],
+        }
         return solve(scene, window, view, blurred, operator, settings, other, *args)
 
     patches = {
@@ -259,8 +264,8 @@ RULES = (
 def grid_psnrs(work: Path, name: str, source: str) -> dict | None:
     """The calibration's cached PSNRs of the default column (``'default'``, its alpha
     ``'default alpha'``) and of the grid columns (by alpha); None if one is missing."""
-    grid = [protocol.Column(protocol.alpha_key(a), source, {"alpha": a}) for a in GRID]
-    found = protocol.cached_columns(work, name, [protocol.Column("default", source), *grid])
+    columns = [protocol.Column("default", source), *protocol.grid_columns(source)]
+    found = protocol.cached_columns(work, name, columns)
     if found is None:
         return None
     default, *rest = found

@@ -178,8 +178,7 @@ RULES = (
 
 def grid_psnrs(work: Path, name: str, source: str) -> np.ndarray | None:
     """The cached PSNRs of ``calibrate_defaults.py``'s grid columns, None if one is missing."""
-    columns = [protocol.Column(protocol.alpha_key(a), source, {"alpha": a}) for a in GRID]
-    found = protocol.cached_columns(work, name, columns)
+    found = protocol.cached_columns(work, name, protocol.grid_columns(source))
     return None if found is None else np.array([data["psnr"] for data in found])
 
 
