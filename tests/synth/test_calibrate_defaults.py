@@ -330,3 +330,41 @@ def test_the_studied_rules_read_their_records(curves):
     assert curves.quasi_optimal(record) == grid[2]
     record["own"] = [9.0] * 7
     assert curves.discrepancy(record) == 1e-5
+
+
+@pytest.fixture()
+def model_error(runner):
+    path = PATH.with_name("study_model_error.py")
+    spec = importlib.util.spec_from_file_location("study_model_error", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_model_error_study_samples_and_counts_as_stated(model_error):
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    plane = rng.random((20, 30))
+    y, x = np.mgrid[0:20, 0:30].astype(float)
+    assert np.allclose(model_error.keys_sample(plane, x, y), plane)
+    ramp = 0.1 * x + 0.2 * y  # Keys' kernel reproduces linear functions inside the image
+    inner = (slice(2, -3), slice(2, -3))
+    sampled = model_error.keys_sample(ramp, x + 0.3, y + 0.6)
+    assert np.allclose(sampled[inner], (ramp + 0.03 + 0.12)[inner])
+    instants = [(x, y), (x + 1.0, y)]
+    expected = (plane + np.roll(plane, -1, axis=1)) / 2
+    mean = model_error.gathered(plane, instants, model_error.keys_sample)
+    assert np.allclose(mean[:, :-1], expected[:, :-1])
+
+    mixed = np.zeros((20, 30), bool)
+    mixed[10, 10] = True
+    scene = SimpleNamespace(read_gt_mixed=lambda view, frame: mixed)
+    keep = model_error.kept_pixels(scene, 2, [(x, y), (x + 5.0, y)])
+    assert not keep[:2].any() and not keep[:, -5:].any() and keep[5, 24]  # border, paths out
+    assert not keep[10, 7:14].any() and not keep[7:14, 10].any()  # 3 px from gt/mixed
+    assert keep[10, 6] and keep[5, 5] and keep[15, 20]
+    error = np.full((20, 30), 0.5)
+    assert model_error.misfit(error, np.zeros((20, 30)), keep) == pytest.approx(0.5)
