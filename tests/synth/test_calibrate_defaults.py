@@ -286,13 +286,17 @@ def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path):
     assert runner.cached_columns(tmp_path, "family_0000", [column])[0]["psnr"] == 30.0
 
 
-@pytest.fixture()
-def curves(runner):
-    path = PATH.with_name("study_alpha_curves.py")
-    spec = importlib.util.spec_from_file_location("study_alpha_curves", path)
+def _study(name: str):
+    """The benchmark study ``benchmarks/NAME.py`` as a module (``calibrate_defaults`` loaded)."""
+    spec = importlib.util.spec_from_file_location(name, PATH.with_name(f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.fixture()
+def curves(runner):
+    return _study("study_alpha_curves")
 
 
 def test_the_sharp_domain_score_carries_the_right_view_to_the_left(curves):
@@ -334,11 +338,7 @@ def test_the_studied_rules_read_their_records(curves):
 
 @pytest.fixture()
 def model_error(runner):
-    path = PATH.with_name("study_model_error.py")
-    spec = importlib.util.spec_from_file_location("study_model_error", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return _study("study_model_error")
 
 
 def test_the_model_error_study_samples_and_counts_as_stated(model_error):
