@@ -30,7 +30,6 @@ __all__ = [
     "DEFAULT_MOTION_SOURCE",
     "DEFAULT_OBSERVATIONS",
     "GATE_MARGIN",
-    "MOTION_CHECK_ALPHA",
     "HELD_OUT_MIN_WEIGHT",
     "HELD_OUT_NOISE_RATIO",
     "HELD_OUT_STOP",
@@ -67,13 +66,6 @@ OBSERVATIONS = ("single", "other-view", "neighbours", "all")
 NUM_SAMPLES = 70
 # The paper's prior weight of Eq. 6; its columns in README.md "Paper Tables 3 and 4" use it.
 PAPER_ALPHA = 1e-3
-# An estimated motion the range guard takes from the whole view at this alpha is rejected at
-# every larger alpha too, where the prior hides its failure (the paper's 1e-3 until stop 51).
-# Training half, 320x240 (calibrate_defaults_train16_320x240_stop50.md, _train2_..._stop47.md):
-# with the true motion the guard took the whole view at 3e-5 (street_0000, street_0005), never
-# at 1e-4; with the scene flow at 1e-4 on family_0001 / family_0035, where the default's
-# larger alphas kept the motion and came out 2.5 / 0.1 dB below the rejected solution.
-MOTION_CHECK_ALPHA = 1e-4
 # The paper's iteration counts (Sec. 4); the paper's columns of the benches keep them.
 PAPER_IRLS = 10
 PAPER_CG = 25

@@ -381,7 +381,7 @@ def _guard_verdicts(monkeypatch, verdicts):
 
 
 @pytest.mark.parametrize("above", [False, True])
-def test_a_motion_rejected_at_the_check_alpha_is_rejected_above_it(scene, monkeypatch, above):
+def test_a_motion_rejected_at_the_papers_alpha_is_rejected_above_it(scene, monkeypatch, above):
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
@@ -396,11 +396,11 @@ def test_a_motion_rejected_at_the_check_alpha_is_rejected_above_it(scene, monkey
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
     errors = iter([3.0, 2.0, 1.0])  # the largest alpha predicts best
     monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(errors))
-    if above:  # the floor is above the check's alpha: one more solve there, not a candidate
-        monkeypatch.setattr(frame_module, "MOTION_CHECK_ALPHA", auto.alpha / 2)
+    if above:  # the floor is above the paper's alpha: one more solve there, not a candidate
+        monkeypatch.setattr(frame_module, "PAPER_ALPHA", auto.alpha / 2)
         guard = _guard_verdicts(monkeypatch, [True])
-    else:  # the guard rejects the motion at the check's alpha only
-        monkeypatch.setattr(frame_module, "MOTION_CHECK_ALPHA", grid[0])
+    else:  # the guard rejects the motion at the paper's alpha only
+        monkeypatch.setattr(frame_module, "PAPER_ALPHA", grid[0])
         guard = _guard_verdicts(monkeypatch, [False, True])
     with pytest.warns(UserWarning, match="range guard"):
         chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",))

@@ -16,11 +16,11 @@ alphas no smaller than the noise rule's, raised by the motion's trust, and among
 within :data:`~stereodeblur.settings.HELD_OUT_TIE` of the best (a flat error curve, which cannot
 tell them apart) the alpha nearest the paper's. It solves them from the smallest up and stops
 once an error is more than :data:`~stereodeblur.settings.HELD_OUT_STOP` above the least. An
-estimated motion that the range guard rejects over the whole view at
-:data:`~stereodeblur.settings.MOTION_CHECK_ALPHA` is rejected at every larger candidate too,
-where a strong prior can hide the failure (the pipeline's ``_alpha_choice_solve``).
-``'cross-view'`` takes :data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best
-predictor of the whole grid (``benchmarks/study_alpha_choice.py``).
+estimated motion that the range guard rejects over the whole view at the paper's alpha is
+rejected at every larger candidate too, where a strong prior can hide the failure (the
+pipeline's ``_alpha_choice_solve``). ``'cross-view'`` takes
+:data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
+whole grid (``benchmarks/study_alpha_choice.py``).
 
 With the neighbouring frames observed (``observations='neighbours'``/``'all'``) an estimated
 motion's candidates are scored instead by the untrimmed errors of the other view's and the
@@ -67,12 +67,11 @@ from ..settings import (
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 12
+RULES_VERSION = 11
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results (9 and 10 were candidates of stops 41 and 42, not adopted): 12 since
-stop 52 (the range guard's verdict on the motion taken at ``MOTION_CHECK_ALPHA``, not at the
-paper's alpha), 11 since stop 46 (with the neighbouring frames observed, candidates scored
-by :func:`held_out_error`), 8 since stop 38 (the search goes past small bumps; a motion the
+cached benchmark results (9 and 10 were candidates of stops 41 and 42, not adopted): 11 since
+stop 46 (with the neighbouring frames observed, candidates scored by :func:`held_out_error`),
+8 since stop 38 (the search goes past small bumps; a motion the
 range guard rejects over the whole view at the paper's alpha is rejected above it), 7 since
 stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
 range-guarded before it is scored), 5 since stop 29 (the noise gate below the floor), 1 before

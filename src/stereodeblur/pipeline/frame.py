@@ -19,7 +19,7 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import CROSS_VIEW_ALPHAS, MOTION_CHECK_ALPHA, DeblurSettings
+from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
 from .alpha import (
     OtherView,
     below_floor,
@@ -253,8 +253,7 @@ def _alpha_choice_solve(
     the chosen estimate predicts them (:func:`~.observations.weighed_neighbours`). Every
     solution is range-guarded (:func:`~.deconvolve.guarded_solve`) before it is scored, so
     that the choice judges what the view's result would be; with an estimated motion the
-    guard's verdict at :data:`~stereodeblur.settings.MOTION_CHECK_ALPHA` (solved for it if the
-    floor is above) holds for every
+    guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
     larger candidate where it took the whole view. ``base``: the data terms at
     :func:`_choice_settings`, if already computed. Returns the data terms, the result and
     the region the guard deblurred with no motion (or None)."""
@@ -279,11 +278,10 @@ def _alpha_choice_solve(
 
     observed = true_motion_choice(settings) and other.observation is not None
     floor = alpha_from_sigma(base.noise_sigma) if observed else base.alpha
-    # An estimated motion the guard rejects over the whole view at the check's alpha is
+    # An estimated motion the guard rejects over the whole view at the paper's alpha is
     # rejected at every larger alpha, where the prior can hide its failure.
     judged = settings.range_guard and not observed
-    check = MOTION_CHECK_ALPHA
-    rejected = _whole_view(run(check).unexplained) if judged and floor > check else None
+    rejected = _whole_view(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
 
     held = [o.observation for o in observations if o.name in NEIGHBOURS]
     if held and other.observation is not None:
@@ -298,8 +296,8 @@ def _alpha_choice_solve(
 
     runs, errors = [], []
     for alpha in candidates(rule, floor):
-        runs.append(run(alpha, rejected if alpha > check else None))
-        if judged and alpha <= check:
+        runs.append(run(alpha, rejected if alpha > PAPER_ALPHA else None))
+        if judged and alpha <= PAPER_ALPHA:
             rejected = _whole_view(runs[-1].unexplained)
         errors.append(score(runs[-1].image))
         if searched(rule, errors):
@@ -328,7 +326,7 @@ def _alpha_choice_solve(
             weights,
             observations,
             progress,
-            rejected if terms.alpha > check else None,
+            rejected if terms.alpha > PAPER_ALPHA else None,
         )
     return terms, result, unexplained
 
