@@ -1,5 +1,7 @@
 """Shared fixtures: tiny scenes written in the scene format."""
 
+import signal
+
 import numpy as np
 import pytest
 
@@ -32,3 +34,11 @@ def write_tiny_scene(root, *, num_frames=3, size=(40, 32), seed=0, gt=True):
 @pytest.fixture
 def tiny_scene(tmp_path):
     return write_tiny_scene(tmp_path / "scene")
+
+
+def pytest_configure(config):
+    """Ctrl-C as at a terminal, also where the test run was started as a background job (which
+    starts with SIGINT ignored, a disposition every process it starts would inherit): the
+    interrupt tests send SIGINT to the command line and expect it to stop."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
