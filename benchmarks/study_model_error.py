@@ -70,13 +70,14 @@ def model_error(task) -> tuple[str, dict | None]:
         "counted": counted,
         "operators": errors,
         "renders": {},
-        "psnr": {"family render": grid_psnrs(scene)},
+        "psnr": {"family render": grid_psnrs(scene, work / "results" / root.name)},
     }
     for label, rays, factor in RENDERS:
-        other = open_scene(rerender(kind, seed, size, work, rays, factor))
+        path = rerender(kind, seed, size, work, rays, factor)
+        other = open_scene(path)
         record["renders"][label] = operator_errors(other, variants=("pipeline",))[0]["pipeline"]
         if rays != SUPERSAMPLING:
-            record["psnr"][label] = grid_psnrs(other)
+            record["psnr"][label] = grid_psnrs(other, path.parent / "results" / path.name)
     return root.name, record
 
 
@@ -93,16 +94,6 @@ def rerender(kind: str, seed: int, size, work: Path, rays: int, factor: int) -> 
         spec = replace(spec, supersampling=rays)
         write_family_scene(spec, root, num_samples=spec.num_samples * factor)
     return root
-
-
-def true_motion(scene, settings):
-    """Frame 1's window and its left view's true motion (the scene flow fitted to the ground
-    truth) under ``settings``."""
-    from stereodeblur.pipeline.motion import stereo_motion
-    from stereodeblur.pipeline.window import read_window
-
-    window = read_window(scene, protocol.FRAME, ("left",), settings)
-    return window, stereo_motion(scene, window, ("left",), settings).views["left"]
 
 
 def kept_pixels(scene, border: int, positions) -> np.ndarray:
@@ -123,36 +114,35 @@ def kept_pixels(scene, border: int, positions) -> np.ndarray:
 
 def misfit(predicted, blurred, keep) -> float:
     """RMS of ``predicted - blurred`` over the ``keep`` pixels (channels averaged)."""
-    error = (np.asarray(predicted, np.float64) - blurred) ** 2
-    error = error.mean(axis=-1) if error.ndim == 3 else error
-    return float(np.sqrt(error[keep].mean()))
+    from stereodeblur.pipeline.alpha import pixel_errors
+
+    return float(np.sqrt(pixel_errors(predicted, blurred, border=0)[keep].mean()))
+
+
+def channels(image: np.ndarray) -> list[np.ndarray]:
+    """The planes of ``image`` (one for a grey image)."""
+    return [image[..., c] for c in range(image.shape[-1])] if image.ndim == 3 else [image]
 
 
 def keys_sample(plane: np.ndarray, px: np.ndarray, py: np.ndarray) -> np.ndarray:
-    """``plane`` at ``(px, py)`` by Keys' cubic convolution, taps clamped to the image."""
-    from stereodeblur.blur.trajectories import keys_weights
+    """``plane`` at ``(px, py)`` by Keys' cubic convolution, as the blur operator gathers
+    (:func:`~stereodeblur.blur.trajectories.cubic_taps`, clamped to the image)."""
+    from stereodeblur.blur.trajectories import cubic_taps
 
-    x0, y0 = np.floor(px).astype(int), np.floor(py).astype(int)
-    height, width = plane.shape
-    out = np.zeros(px.shape)
-    for j in range(-1, 3):
-        rows = np.clip(y0 + j, 0, height - 1)
-        wy = keys_weights(py - y0 - j)
-        for i in range(-1, 3):
-            out += wy * keys_weights(px - x0 - i) * plane[rows, np.clip(x0 + i, 0, width - 1)]
-    return out
+    index, weight, _ = cubic_taps(np.stack([px, py], axis=-1), plane.shape, border="clamp")
+    return (plane.ravel()[index] * weight).sum(axis=-1)
 
 
-def gathered(truth, positions, sample) -> np.ndarray:
-    """Mean over the instants of ``sample(plane, px, py)`` at ``positions`` (an iterable of
-    ``(px, py)`` per instant), per channel."""
-    planes = [truth[..., c] for c in range(truth.shape[-1])] if truth.ndim == 3 else [truth]
-    total, count = [np.zeros(planes[0].shape) for _ in planes], 0
+def gathered(planes, positions, sample) -> np.ndarray:
+    """Mean over the instants of ``sample(plane, px, py)`` at ``positions`` (``(px, py)`` per
+    instant) for every plane of ``planes``, stacked on the last axis (one plane: 2D)."""
+    total, count = np.zeros(planes[0].shape + (len(planes),)), 0
     for px, py in positions:
-        for c, plane in enumerate(planes):
-            total[c] += sample(plane, px, py)
         count += 1
-    return np.stack([t / count for t in total], axis=-1) if truth.ndim == 3 else total[0] / count
+        for c, plane in enumerate(planes):
+            total[..., c] += sample(plane, px, py)
+    mean = total / count
+    return mean[..., 0] if len(planes) == 1 else mean
 
 
 def homography_positions(sceneflow, exposure, num_samples: int, chunk: int = 10):
@@ -186,22 +176,22 @@ def operator_errors(scene, variants=OPERATORS) -> tuple[dict, float]:
     from scipy import ndimage
 
     from stereodeblur.evaluation.metrics import border_for
+    from stereodeblur.pipeline import frame_motion
     from stereodeblur.pipeline.operator import build_operator
 
     settings = protocol.unmoved("gt")
     truth = scene.read_gt_sharp("left", protocol.FRAME)
     blurred = scene.read_frame("left", protocol.FRAME)
-    window, motion = true_motion(scene, settings)
-    exposure, num = window.exposure, settings.num_samples
-    inside = homography_positions(motion.sceneflow, exposure, num)
-    keep = kept_pixels(scene, border_for(truth.shape[1]), inside)
+    motion = frame_motion(scene, protocol.FRAME, "left", settings)
+    exposure, num = scene.info.exposure, settings.num_samples
+    positions = list(homography_positions(motion.sceneflow, exposure, num))
+    keep = kept_pixels(scene, border_for(truth.shape[1]), positions)
 
     def operator(**changes):
         built = build_operator(motion, exposure, replace(settings, **changes))
         return built.forward(truth)
 
-    def bspline(plane, px, py):
-        coefficients = ndimage.spline_filter(plane, order=3, mode="nearest")
+    def bspline(coefficients, px, py):
         return ndimage.map_coordinates(
             coefficients, [py, px], order=3, mode="nearest", prefilter=False
         )
@@ -211,10 +201,12 @@ def operator_errors(scene, variants=OPERATORS) -> tuple[dict, float]:
         f"{SAMPLES_FACTOR}x instants": lambda: operator(num_samples=SAMPLES_FACTOR * num),
         "bilinear": lambda: operator(interpolation="bilinear"),
         "cubic B-spline": lambda: gathered(
-            truth, homography_positions(motion.sceneflow, exposure, num), bspline
+            [ndimage.spline_filter(c, order=3, mode="nearest") for c in channels(truth)],
+            positions,
+            bspline,
         ),
         "dense true flow": lambda: gathered(
-            truth, flow_positions(scene, exposure, num), keys_sample
+            channels(truth), flow_positions(scene, exposure, num), keys_sample
         ),
     }
     with warnings.catch_warnings():
@@ -223,22 +215,16 @@ def operator_errors(scene, variants=OPERATORS) -> tuple[dict, float]:
     return errors, float(keep.mean())
 
 
-def grid_psnrs(scene) -> list[float]:
+def grid_psnrs(scene, cache: Path) -> list[float]:
     """PSNR of the left view's frame 1 deblurred with the true motion and the default settings
-    at every grid alpha."""
-    from stereodeblur.evaluation.metrics import border_for, psnr
-    from stereodeblur.pipeline import deblur_stereo_frame
-
+    at every grid alpha: the calibration's columns, read from or stored in ``cache``."""
+    cache.mkdir(parents=True, exist_ok=True)
     truth = scene.read_gt_sharp("left", protocol.FRAME)
-    out = []
-    for column in protocol.grid_columns("gt"):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            stereo = deblur_stereo_frame(
-                scene, protocol.FRAME, views=("left",), settings=column.settings()
-            )
-        out.append(psnr(stereo.frames["left"].image, truth, border=border_for(truth.shape[1])))
-    return out
+    motions, seconds = {}, {}
+    return [
+        protocol.cached_column(scene, column, truth, cache, motions, seconds)["psnr"]
+        for column in protocol.grid_columns("gt")
+    ]
 
 
 def report(rows: dict, work: Path, args, minutes: float) -> list[str]:

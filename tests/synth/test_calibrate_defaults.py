@@ -5,7 +5,9 @@ import json
 import math
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "calibrate_defaults.py"
@@ -299,11 +301,12 @@ def curves(runner):
     return _study("study_alpha_curves")
 
 
+@pytest.fixture()
+def model_error(runner):
+    return _study("study_model_error")
+
+
 def test_the_sharp_domain_score_carries_the_right_view_to_the_left(curves):
-    from types import SimpleNamespace
-
-    import numpy as np
-
     rng = np.random.default_rng(0)
     left = rng.random((40, 64))
     disparity = np.full(left.shape, 3.0)
@@ -336,16 +339,7 @@ def test_the_studied_rules_read_their_records(curves):
     assert curves.discrepancy(record) == 1e-5
 
 
-@pytest.fixture()
-def model_error(runner):
-    return _study("study_model_error")
-
-
 def test_the_model_error_study_samples_and_counts_as_stated(model_error):
-    from types import SimpleNamespace
-
-    import numpy as np
-
     rng = np.random.default_rng(0)
     plane = rng.random((20, 30))
     y, x = np.mgrid[0:20, 0:30].astype(float)
@@ -356,7 +350,7 @@ def test_the_model_error_study_samples_and_counts_as_stated(model_error):
     assert np.allclose(sampled[inner], (ramp + 0.03 + 0.12)[inner])
     instants = [(x, y), (x + 1.0, y)]
     expected = (plane + np.roll(plane, -1, axis=1)) / 2
-    mean = model_error.gathered(plane, instants, model_error.keys_sample)
+    mean = model_error.gathered([plane], instants, model_error.keys_sample)
     assert np.allclose(mean[:, :-1], expected[:, :-1])
 
     mixed = np.zeros((20, 30), bool)
