@@ -177,26 +177,30 @@ def replay_default(record: dict) -> float:
     :func:`~stereodeblur.pipeline.alpha.choose`; at the floor, the noise gate
     (:func:`~stereodeblur.pipeline.alpha.below_floor`) on the other view's error (the last
     held-out observation), over the grid alphas only (the noise rule's own alpha, not on the
-    grid, is not recorded)."""
-    from stereodeblur.pipeline.alpha import below_floor, choose, searched
+    grid, is not recorded); candidates a larger one fits better in the own frame are dropped
+    (:func:`~stereodeblur.pipeline.alpha.undominated`)."""
+    from stereodeblur.pipeline.alpha import below_floor, choose, searched, undominated
 
-    alphas, floor = record["alphas"], record["alphas"][0]
+    alphas, floor, own = record["alphas"], record["alphas"][0], record["own"]
     order = [0] + [k for k, a in enumerate(alphas) if a > floor]
     errors = []
     for k in order:
         errors.append(record["score"][k])
         if searched("held-out", errors):
             break
-    best = choose(errors, "held-out", [alphas[k] for k in order[: len(errors)]])
-    chosen = order[best]
+    solved = order[: len(errors)]
+    kept = undominated([alphas[k] for k in solved], [own[k] for k in solved])
+    best = kept[choose([errors[i] for i in kept], "held-out", [alphas[solved[i]] for i in kept])]
+    chosen = solved[best]
     gate = record["gate"]
     if best == 0 and gate is not None:
         other = {a: e[-1] for a, e in zip(alphas, record["errors"], strict=True)}
         previous = other[floor]
         for alpha in below_floor(gate["floor"], previous, gate["sigma"]):
-            if alpha not in other or other[alpha] >= previous:
+            k = alphas.index(alpha) if alpha in other else None
+            if k is None or other[alpha] >= previous or own[k] >= own[chosen]:
                 break
-            previous, chosen = other[alpha], alphas.index(alpha)
+            previous, chosen = other[alpha], k
     return alphas[chosen]
 
 

@@ -17,8 +17,10 @@ from stereodeblur.pipeline.alpha import (
     choose,
     held_out_error,
     observed_error,
+    own_error,
     prediction_error,
     searched,
+    undominated,
     warp_to_other,
 )
 from stereodeblur.settings import (
@@ -120,6 +122,25 @@ def test_the_held_out_error_sums_the_observations_errors_where_each_sees():
     )
     unseen = Observation(_Identity(), moved, np.where(moved > image, 0.0, seen))
     assert held_out_error(image, [other, unseen], border=4) < 1e-20
+
+
+def test_the_own_error_is_the_views_own_frame_predicted_off_the_border():
+    image = _texture((30, 40))
+    blurred = image.copy()
+    blurred[:4] += 1.0  # in the border: not counted
+    assert own_error(image, _Identity(), blurred, border=4) < 1e-20
+    blurred[10:12, 10:20] += 0.1
+    assert own_error(image, _Identity(), blurred, border=4) == pytest.approx(0.01 * 20 / (22 * 32))
+
+
+def test_a_candidate_a_larger_alpha_fits_as_well_is_dropped():
+    alphas = (2e-5, 3e-5, 1e-4, 3e-4, 1e-3)
+    # family_1055 (640x480, true motion): the own frame fits best at 1e-4, the floor rings
+    assert undominated(alphas, (15.0, 10.2, 7.2, 13.4, 42.1)) == [2, 3, 4]
+    assert undominated(alphas, (1.0, 2.0, 3.0, 4.0, 5.0)) == [0, 1, 2, 3, 4]  # the usual
+    assert undominated(alphas, (2.0, 2.0, 3.0, 1.0, 5.0)) == [3, 4]  # a tie is dominated
+    assert undominated(alphas[:1], (9.0,)) == [0]
+    assert undominated((3e-4, 1e-4, 2e-5), (2.0, 1.0, 3.0)) == [0, 1]  # in any order
 
 
 def test_below_the_floor_only_where_the_other_view_is_predicted_to_its_noise():
@@ -349,6 +370,18 @@ def _scripted_held_out(scene, monkeypatch, factors, errors, paper=None):
     monkeypatch.setattr(frame_module, "held_out_error", scripted)  # the neighbours observed
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     return len(calls), chosen.alpha, grid
+
+
+def test_held_out_skips_a_best_predictor_that_a_larger_alpha_fits_better(scene, monkeypatch):
+    from stereodeblur.pipeline import frame as frame_module
+
+    monkeypatch.setattr(frame_module, "PAPER_ALPHA", 1.0)  # no solve but the candidates'
+    fits = iter([3.0, 1.0, 2.0])  # grid[0] fits the own frame better than the floor
+    monkeypatch.setattr(frame_module, "own_error", lambda *a, border: next(fits))
+    errors = [1.0, 1.05, 1.0 + 3 * HELD_OUT_STOP]  # the floor predicts best, not tied
+    assert errors[1] > (1 + HELD_OUT_TIE) * errors[0]
+    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4), errors)
+    assert calls == 3 and alpha == grid[0] and next(fits, None) is None
 
 
 def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):

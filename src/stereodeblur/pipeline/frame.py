@@ -28,9 +28,11 @@ from .alpha import (
     held_out_error,
     observed_error,
     other_view,
+    own_error,
     prediction_error,
     searched,
     true_motion_choice,
+    undominated,
 )
 from .deconvolve import guarded_solve
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
@@ -231,12 +233,14 @@ def _choice_settings(settings: DeblurSettings) -> DeblurSettings:
 
 class _Candidate(NamedTuple):
     """One alpha of a choice: its data terms, its (range-guarded) result, the guard's region
-    (or None) and the result clipped to [0, 1], which the choice scores."""
+    (or None), the result clipped to [0, 1], which the choice scores, and that image's
+    :func:`.alpha.own_error` in the view's own blurred frame."""
 
     terms: DataTerms
     result: DeblurResult
     unexplained: np.ndarray | None
     image: np.ndarray
+    own: float
 
 
 def _alpha_choice_solve(
@@ -273,7 +277,9 @@ def _alpha_choice_solve(
             result, unexplained = guarded_solve(
                 blurred, operator, terms, fixed, weights, (), progress, rejected
             )
-            solved[key] = _Candidate(terms, result, unexplained, np.clip(result.image, 0.0, 1.0))
+            image = np.clip(result.image, 0.0, 1.0)
+            own = own_error(image, operator.operator, blurred, border=border)
+            solved[key] = _Candidate(terms, result, unexplained, image, own)
         return solved[key]
 
     observed = true_motion_choice(settings) and other.observation is not None
@@ -302,17 +308,21 @@ def _alpha_choice_solve(
         errors.append(score(runs[-1].image))
         if searched(rule, errors):
             break
-    best = choose(errors, rule, [run.terms.alpha for run in runs])
+    alphas = [run.terms.alpha for run in runs]
+    kept = list(range(len(runs)))
+    if rule == "held-out":
+        kept = undominated(alphas, [run.own for run in runs])
+    best = kept[choose([errors[k] for k in kept], rule, [alphas[k] for k in kept])]
     chosen = runs[best]
     if rule == "held-out" and best == 0 and other.observation is not None:
         gated = [observed_error(chosen.image, other.observation, border=border)]
         for alpha in below_floor(base.alpha, gated[0], base.noise_sigma):
             below = run(alpha)
             gated.append(observed_error(below.image, other.observation, border=border))
-            if gated[-1] >= gated[-2]:
+            if gated[-1] >= gated[-2] or below.own >= chosen.own:
                 break
             chosen = below
-    terms, result, unexplained, image = chosen
+    terms, result, unexplained, image, _ = chosen
     if observations:
         if other.observation is not None:
             observations = _weighed(observations, image, other.observation, border, progress)
