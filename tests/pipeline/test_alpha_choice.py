@@ -488,7 +488,10 @@ def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkey
     np.testing.assert_array_equal(chosen.image, fixed.image)
 
 
-def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
+def _floor_best(scene, monkeypatch, below):
+    """``'held-out'`` on the left view (settings and ``'auto'``'s alpha returned) with one grid
+    alpha above the floor, the floor predicting best, and ``below(auto_alpha)`` the noise
+    gate's alphas."""
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
@@ -497,12 +500,31 @@ def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
         scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
     ).frames["left"]
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", (auto.alpha * 2,))
+    monkeypatch.setattr(frame_module, "below_floor", lambda *args: below(auto.alpha))
     upwards = iter([1.0, 2.0])
-    monkeypatch.setattr(frame_module, "below_floor", lambda *args: ())
     for score in ("prediction_error", "held_out_error"):
         monkeypatch.setattr(frame_module, score, lambda *a, border: next(upwards))
+    return settings, auto.alpha
+
+
+def test_held_out_stops_below_its_floor_where_the_own_frame_fits_no_better(scene, monkeypatch):
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings, auto = _floor_best(scene, monkeypatch, lambda a: (a / 2, a / 4, a / 8))
+    monkeypatch.setattr(frame_module, "PAPER_ALPHA", 1.0)  # no solve but the candidates'
+    downwards = iter([0.9, 0.5, 0.25])  # the gate's error falls all the way
+    fits = iter([5.0, 6.0, 4.0, 4.5])  # floor, grid, auto / 2 fits better, auto / 4 not
+    monkeypatch.setattr(frame_module, "observed_error", lambda *a, border: next(downwards))
+    monkeypatch.setattr(frame_module, "own_error", lambda *a, border: next(fits))
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    assert chosen.alpha == auto.alpha
+    assert chosen.alpha == auto / 2
+    assert next(downwards, None) is None and next(fits, None) is None
+
+
+def test_held_out_stays_at_its_floor_where_the_gate_is_shut(scene, monkeypatch):
+    settings, auto = _floor_best(scene, monkeypatch, lambda a: ())
+    chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    assert chosen.alpha == auto
 
 
 def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rule_up(
