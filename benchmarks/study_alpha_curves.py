@@ -72,10 +72,9 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
         if current["view"] == "left":
             out["errors"].append(errors)
             out["psnr"].append(psnr(image, truth, border=border))
-            own = rules.pixel_errors(
-                view["operator"].forward(image), view["blurred"], border=border
+            out["own"].append(
+                rules.own_error(image, view["operator"], view["blurred"], border=border)
             )
-            out["own"].append(float(own.mean()))
         return sum(errors)
 
     def held_out_error(image, observations, *, border):

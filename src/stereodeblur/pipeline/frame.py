@@ -309,9 +309,7 @@ def _alpha_choice_solve(
         if searched(rule, errors):
             break
     alphas = [run.terms.alpha for run in runs]
-    kept = list(range(len(runs)))
-    if rule == "held-out":
-        kept = undominated(alphas, [run.own for run in runs])
+    kept = undominated(alphas, [r.own for r in runs]) if rule == "held-out" else range(len(runs))
     best = kept[choose([errors[k] for k in kept], rule, [alphas[k] for k in kept])]
     chosen = runs[best]
     if rule == "held-out" and best == 0 and other.observation is not None:
