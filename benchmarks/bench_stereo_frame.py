@@ -7,6 +7,7 @@ Run from the repository root::
     python benchmarks/bench_stereo_frame.py --alpha cross-view   # a setting other than the default
     python benchmarks/bench_stereo_frame.py --observations all --irls 6 --cg 10
     python benchmarks/bench_stereo_frame.py --interpolation cubic
+    python benchmarks/bench_stereo_frame.py --local-alpha on
 
 An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. A
 warm-up process on a 64x48 rendering of the same scene compiles the numba kernels into
@@ -126,6 +127,12 @@ def main() -> None:
     parser.add_argument(
         "--relabel-radius", dest="relabel_radius", type=int, help="--relabel-radius of the run"
     )
+    parser.add_argument(
+        "--local-alpha",
+        dest="local_alpha",
+        type={"on": True, "off": False, "True": True, "False": False}.__getitem__,
+        help="--local-alpha (on) or --no-local-alpha (off) for the run",
+    )
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     options = {
@@ -137,6 +144,7 @@ def main() -> None:
             "num_irls",
             "num_cg",
             "relabel_radius",
+            "local_alpha",
         )
         if getattr(args, name) is not None
     }

@@ -60,7 +60,7 @@ import numpy as np
 
 from stereodeblur.evaluation.metrics import border_for as border_of
 from stereodeblur.io.outputs import atomic_write_text
-from stereodeblur.pipeline.alpha import rules_version
+from stereodeblur.pipeline.alpha import local_alpha_acts, local_alpha_signature, rules_version
 from stereodeblur.pipeline.motion import relabel_rule
 from stereodeblur.pipeline.observations import neighbours_version
 from stereodeblur.sceneflow.from_gt import FIT_VERSION
@@ -103,6 +103,7 @@ CANDIDATES = {
     "no-relabel": {"relabel_radius": 0},
     "relabel-occlusion": {"boundary_flow": False},
     "census-0.004": {"sceneflow": SceneFlowSettings(census_threshold=0.004)},
+    "local-alpha": {"local_alpha": True},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
@@ -113,8 +114,9 @@ stop 42) and ``single`` the view's own frame alone (the default until stop 24),
 ``iterations-10x25`` the paper's iteration
 counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` and
 ``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
-``no-relabel`` the estimate's own segment boundaries (the default until stop 34) and
-``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere;
+``no-relabel`` the estimate's own segment boundaries (the default until stop 34),
+``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere and
+``local-alpha`` the prior weight varying over the view (stop 54);
 all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
 they were measured."""
 
@@ -227,6 +229,7 @@ def _log(message: str) -> None:
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
+    ``local_alpha`` only where it acts,
     ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
     before those options stay valid), the relabelling rule's version where it acts, for the
     rules that predict the other view their version (unless not ``rules``: what does not
@@ -235,6 +238,8 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
+    if not local_alpha_acts(settings):
+        text = text.replace(f", local_alpha={settings.local_alpha}", "")
     if relabel_rule(settings) is None:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     else:
@@ -246,7 +251,7 @@ def _signature(settings, *, rules: bool = True) -> str:
     rules_text = "" if version is None else f" alpha rules {version}"
     nb = neighbours_version(settings)
     neighbours = "" if nb is None else f" neighbours {nb}"
-    return text + rules_text + stored + fit + guard + neighbours
+    return text + rules_text + stored + fit + guard + neighbours + local_alpha_signature(settings)
 
 
 def _cached(path: Path, signature: str) -> dict | None:

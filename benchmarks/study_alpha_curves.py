@@ -121,6 +121,7 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
         "below_floor": below_floor,
         "candidates": candidates,
         "searched": lambda rule, errors: False,
+        "undominated": lambda alphas, own: list(range(len(alphas))),
     }
     saved = {name: getattr(frame, name) for name in patches}
     settings = protocol.Column("default", source).settings()

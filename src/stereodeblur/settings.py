@@ -34,6 +34,10 @@ __all__ = [
     "HELD_OUT_NOISE_RATIO",
     "HELD_OUT_STOP",
     "HELD_OUT_TIE",
+    "LOCAL_ALPHA_WINDOW",
+    "LOCAL_ALPHA_DOWN",
+    "LOCAL_ALPHA_NOISE",
+    "DEFAULT_LOCAL_ALPHA",
     "MONOCULAR_BOUNDARY_WEIGHTS",
     "OBSERVATIONS",
     "OBSERVATION_ROBUST_SCALE",
@@ -135,6 +139,24 @@ HELD_OUT_TIE = 0.005
 # and test, 40 scenes each, 320x240) no choice changes, at 3.1 -> 3.5 solves per view
 # (README, issue 12 section).
 HELD_OUT_STOP = 0.1
+# 'held-out' with local_alpha (stop 54; README, "A prior weight that varies over the view"):
+# at each pixel the alpha of the candidate whose solution predicts the held-out observations
+# best in a Gaussian window of this share of the width (pipeline.alpha.local_scale); 0.1 from
+# blending the candidates' solutions after the fact (20 fresh test scenes, skip 120, and 5
+# training scenes): 0.025 and 0.05 lost 1.9 and 0.8 dB on family_0000, 0.15 gained less.
+LOCAL_ALPHA_WINDOW = 0.1
+# Below the chosen alpha only on a noisy frame (noise estimate at least LOCAL_ALPHA_NOISE), down
+# to LOCAL_ALPHA_DOWN times less. Train split (40 scenes, 320x240, true motion / scene flow):
+# down to one more grid alpha on every frame -0.03 / -0.02 dB (family_0006 -6.79, noise 0.009:
+# a finely striped disc), never down +0.09 / +0.02 (worst -0.13), down on noisy frames +0.17 /
+# +0.12 (worst -0.25); every frame of noise 0.013 or more gained going down, none of 0.009 or less
+# (results/calibrate_defaults_train_320x240_local_alpha*_stop54.md).
+LOCAL_ALPHA_DOWN = 10.0
+LOCAL_ALPHA_NOISE = 0.012
+# Off: bench paper 36.53 -> 36.47 dB with it (objects -0.12 / -0.10, noiseless / noisy; its
+# frames are all quiet, so the map only rises there), against +0.07 / +0.03 dB on the test split
+# and +0.44 dB on 20 fresh test scenes (results/*local_alpha_stop54.md). The paper's is off.
+DEFAULT_LOCAL_ALPHA = False
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene;
 # 'gated' over 'adaptive': 40 test scenes at 320x240 (benchmarks/results/
 # calibrate_defaults_test_320x240.md) +0.09 / +0.24 dB (true motion / scene flow), scenes more
@@ -349,6 +371,11 @@ class DeblurSettings:
         the further observations that see them dropped;
         :mod:`stereodeblur.deconv.intensity_range`); every pixel where such regions cover more
         than :data:`RANGE_WHOLE` of the frame. Default on; the paper has no such step.
+    local_alpha : bool
+        With ``alpha='held-out'`` and held-out observations: the chosen alpha is scaled per
+        pixel to the candidate that predicts them best around the pixel
+        (:func:`stereodeblur.pipeline.alpha.local_scale`, :data:`LOCAL_ALPHA_WINDOW`) in the
+        final solve. Off: one alpha for the whole view (the paper's).
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -370,6 +397,7 @@ class DeblurSettings:
     boundary_flow: bool = DEFAULT_BOUNDARY_FLOW
     relabel_radius: int = RELABEL_RADIUS
     range_guard: bool = DEFAULT_RANGE_GUARD
+    local_alpha: bool = DEFAULT_LOCAL_ALPHA
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -427,6 +455,8 @@ class DeblurSettings:
             raise InputError(f"boundary_flow must be True or False, got {self.boundary_flow!r}")
         if not isinstance(self.range_guard, bool):
             raise InputError(f"range_guard must be True or False, got {self.range_guard!r}")
+        if not isinstance(self.local_alpha, bool):
+            raise InputError(f"local_alpha must be True or False, got {self.local_alpha!r}")
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(
                 f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"

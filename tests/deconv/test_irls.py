@@ -36,16 +36,17 @@ def smoothed_power(c: np.ndarray, exponent: float, epsilon: float) -> np.ndarray
     return np.where(c >= epsilon, c**exponent, small)
 
 
-def energy(image, blurred, operator, weights, alpha, exponent, epsilon):
-    """The objective of ``deblur_irls``, computed with numpy and scipy only."""
+def energy(image, blurred, operator, weights, alpha, exponent, epsilon, scale=None):
+    """The objective of ``deblur_irls``, computed with numpy and scipy only (``scale``: the
+    per-pixel factor of alpha, at each difference's first pixel)."""
     image = np.asarray(image, np.float64)
     residual = blurred - operator.matrix.astype(np.float64) @ image.reshape(weights.size, -1)
     data = np.sum(weights.reshape(-1, 1).astype(np.float64) ** 2 * residual**2)
+    scale = np.ones(weights.shape) if scale is None else scale.astype(np.float64)
     dx = np.diff(image, axis=1)
     dy = np.diff(image, axis=0)
-    prior = (
-        smoothed_power(dx, exponent, epsilon).sum() + smoothed_power(dy, exponent, epsilon).sum()
-    )
+    prior = (scale[:, :-1] * smoothed_power(dx, exponent, epsilon)).sum()
+    prior += (scale[:-1] * smoothed_power(dy, exponent, epsilon)).sum()
     return data + 2 * alpha / exponent * prior
 
 
@@ -90,25 +91,36 @@ def test_gradient_float32_and_constant_image():
 
 @pytest.mark.parametrize("channels", [None, 3])
 @pytest.mark.parametrize("exponent", [0.8, 2.0])
-def test_one_irls_step_solves_the_weighted_normal_equations(box_blur, channels, exponent):
-    """Eq. 7-8 with W^2 in the data term, against a sparse direct solve in float64."""
+@pytest.mark.parametrize("scaled", [False, True])
+def test_one_irls_step_solves_the_weighted_normal_equations(box_blur, channels, exponent, scaled):
+    """Eq. 7-8 with W^2 in the data term (and alpha scaled per pixel), against a sparse
+    direct solve in float64."""
     height, width = 20, 24
     shape = (height, width) if channels is None else (height, width, channels)
     rng = np.random.default_rng(1)
     operator = box_blur((height, width), 3, 7, seed=1)
     blurred = rng.random(shape).astype(np.float32)
     weights = rng.uniform(0.2, 1.0, (height, width)).astype(np.float32)
+    scale = rng.uniform(0.1, 10.0, (height, width)).astype(np.float32) if scaled else None
     alpha, epsilon = 0.05, 0.01
     result = deblur_irls(
-        blurred, operator, weights=weights, alpha=alpha, exponent=exponent, num_irls=1, num_cg=400
+        blurred,
+        operator,
+        weights=weights,
+        alpha=alpha,
+        alpha_scale=scale,
+        exponent=exponent,
+        num_irls=1,
+        num_cg=400,
     )
     a = operator.matrix.astype(np.float64)
     w2 = sp.diags(weights.astype(np.float64).ravel() ** 2)
     dx, dy = difference_matrices(height, width)
     flat = blurred.reshape(height * width, -1).astype(np.float64)
+    s = np.ones(height * width) if scale is None else scale.astype(np.float64).ravel()
     for c in range(flat.shape[1]):
-        rho_x = np.maximum(np.abs(dx @ flat[:, c]), epsilon) ** (exponent - 2)
-        rho_y = np.maximum(np.abs(dy @ flat[:, c]), epsilon) ** (exponent - 2)
+        rho_x = s * np.maximum(np.abs(dx @ flat[:, c]), epsilon) ** (exponent - 2)
+        rho_y = s * np.maximum(np.abs(dy @ flat[:, c]), epsilon) ** (exponent - 2)
         normal = a.T @ w2 @ a + alpha * (dx.T @ sp.diags(rho_x) @ dx + dy.T @ sp.diags(rho_y) @ dy)
         expected = spla.spsolve(normal.tocsc(), a.T @ (w2 @ flat[:, c]))
         got = result.image.reshape(height * width, -1)[:, c]
@@ -136,16 +148,18 @@ def test_deblurring_a_natural_image_improves_psnr(camera_image, box_blur):
     assert psnr(result.image, sharp) > psnr(blurred, sharp) + 4
 
 
-@pytest.mark.parametrize("masked", [False, True])
-def test_energy_does_not_increase(camera_image, box_blur, masked):
+@pytest.mark.parametrize(("masked", "scaled"), [(False, False), (True, False), (False, True)])
+def test_energy_does_not_increase(camera_image, box_blur, masked, scaled):
     sharp, operator, blurred = blurred_camera(camera_image, box_blur, (48, 64), seed=3)
-    weights = None
+    rng = np.random.default_rng(3)
+    weights = scale = None
     if masked:
-        rng = np.random.default_rng(3)
         weights = rng.uniform(0, 1, sharp.shape).astype(np.float32)
         weights[10:20, 20:30] = 0
+    if scaled:
+        scale = np.exp(rng.uniform(-2.5, 2.5, sharp.shape)).astype(np.float32)
     alpha, exponent, epsilon = 1e-3, 0.8, 0.01
-    result = deblur_irls(blurred, operator, weights=weights, num_irls=8)
+    result = deblur_irls(blurred, operator, weights=weights, alpha_scale=scale, num_irls=8)
     energies = np.array([entry.energy for entry in result.history])
     assert len(energies) == 9
     assert np.all(np.diff(energies) <= 1e-6 * energies[:-1])
@@ -153,7 +167,7 @@ def test_energy_does_not_increase(camera_image, box_blur, masked):
     # The reported energy is the documented objective, computed independently.
     used = np.ones(sharp.shape, np.float32) if weights is None else weights
     expected = energy(
-        result.image, blurred.reshape(-1, 1), operator, used, alpha, exponent, epsilon
+        result.image, blurred.reshape(-1, 1), operator, used, alpha, exponent, epsilon, scale
     )
     np.testing.assert_allclose(result.history[-1].energy, expected, rtol=1e-4)
     last = result.history[-1]
@@ -314,6 +328,10 @@ def test_bad_input(box_blur):
         deblur_irls(image, operator, initial=np.zeros((16, 15)))
     with pytest.raises(InputError, match="initial"):
         deblur_irls(image, operator, initial=np.full((16, 16), np.nan))
+    with pytest.raises(InputError, match="alpha_scale"):
+        deblur_irls(image, operator, alpha_scale=np.ones((16, 15)))
+    with pytest.raises(InputError, match="alpha_scale"):
+        deblur_irls(image, operator, alpha_scale=np.full((16, 16), -1.0))
     with pytest.raises(InputError, match="exponent"):
         deblur_irls(image, operator, exponent=0)
     with pytest.raises(InputError, match="epsilon"):

@@ -16,6 +16,9 @@ from stereodeblur.pipeline.alpha import (
     below_floor,
     choose,
     held_out_error,
+    local_alpha_acts,
+    local_error,
+    local_scale,
     observed_error,
     own_error,
     prediction_error,
@@ -30,12 +33,15 @@ from stereodeblur.settings import (
     HELD_OUT_NOISE_RATIO,
     HELD_OUT_STOP,
     HELD_OUT_TIE,
+    LOCAL_ALPHA_DOWN,
+    LOCAL_ALPHA_WINDOW,
     PAPER_ALPHA,
 )
 from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
 FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8}
+GLOBAL = {**FAST, "local_alpha": False}  # one alpha per view: the choice's own solution
 
 
 class _Identity:
@@ -461,7 +467,7 @@ def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkey
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
-    settings = DeblurSettings(**FAST, motion_source="sceneflow", alpha="held-out")
+    settings = DeblurSettings(**GLOBAL, motion_source="sceneflow", alpha="held-out")
     auto = deblur_stereo_frame(
         scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
     ).frames["left"]
@@ -545,7 +551,7 @@ def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rul
 
     monkeypatch.setattr(frame_module, "observed_error", recorded)
     monkeypatch.setattr(frame_module, "prediction_error", unused)
-    settings = DeblurSettings(**FAST, motion_source="gt", alpha="held-out")
+    settings = DeblurSettings(**GLOBAL, motion_source="gt", alpha="held-out")
     chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
     auto = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha="auto")).frames["left"]
     noise = alpha_from_sigma(estimate_noise_sigma(chosen.blurred))
@@ -555,3 +561,98 @@ def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rul
     assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
     fixed = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha=chosen.alpha))
     np.testing.assert_array_equal(chosen.image, fixed.frames["left"].image)
+
+
+def test_the_local_error_is_the_observations_error_around_each_pixel():
+    image = _texture((40, 60))
+    seen = np.ones((40, 60), np.float32)
+    off = image + 0.1
+    off[:4] += 1.0  # within the border: not counted
+    flat = local_error(image, [Observation(_Identity(), off, seen)], window=3.0, border=4)
+    np.testing.assert_allclose(flat[4:-4, 4:-4], 0.01, rtol=1e-9)  # the window's mean
+    twice = local_error(image, [Observation(_Identity(), off, seen)] * 2, window=3.0, border=4)
+    np.testing.assert_allclose(twice[4:-4, 4:-4], 0.02, rtol=1e-9)  # summed over them
+    assert np.isnan(flat[0, 0])  # a corner's window counts too few pixels
+    wrong = image.copy()
+    wrong[:, 30:] += 0.1  # the right half predicted 0.1 off
+    halves = local_error(image, [Observation(_Identity(), wrong, seen)], window=3.0, border=4)
+    inside = halves[4:-4]
+    assert np.all(inside[:, 4:16] < 1e-9) and np.all(np.abs(inside[:, 44:-4] - 0.01) < 1e-9)
+    unseen = seen.copy()
+    unseen[:, 30:] = 0.4 * HELD_OUT_MIN_WEIGHT / 0.5  # below the least weight: not counted
+    hidden = local_error(image, [Observation(_Identity(), wrong, unseen)], window=3.0, border=4)
+    assert np.all(hidden[4:-4, 4:30] < 1e-9)
+    assert np.all(np.isnan(hidden[:, 45:]))  # too few counted pixels in the window
+    assert np.all(hidden[4:-4, 30:33] < 1e-9)  # counted from the left half within the window
+
+
+def test_the_local_scale_takes_the_best_candidate_around_each_pixel():
+    alphas = (1e-4, 1e-3)
+    small = np.zeros((40, 80))
+    small[:, 40:] = 2.0  # the small alpha predicts the left half best, the large the right
+    large = np.ones((40, 80))
+    scale = local_scale(alphas, [small, large], 1e-3, window=2.0)
+    assert scale.dtype == np.float32 and scale.shape == (40, 80)
+    np.testing.assert_allclose(scale[:, :30], 0.1, rtol=1e-5)
+    np.testing.assert_allclose(scale[:, 50:], 1.0, rtol=1e-5)
+    assert np.all(np.diff(scale[:, 30:50], axis=1) >= 0)  # smoothed in log alpha between
+    unscored = small.copy()
+    unscored[:, :40] = np.nan  # no observation around these pixels: the chosen alpha
+    scale = local_scale(alphas, [unscored, large], 1e-4, window=2.0)
+    np.testing.assert_allclose(scale[:, :30], 1.0, rtol=1e-5)
+    np.testing.assert_allclose(scale[:, 50:], 10.0, rtol=1e-5)
+
+
+def test_local_alpha_acts_with_held_out_and_a_motion_that_predicts_the_other_view():
+    assert local_alpha_acts(DeblurSettings(local_alpha=True))
+    assert local_alpha_acts(DeblurSettings(local_alpha=True, motion_source="gt"))
+    assert not local_alpha_acts(DeblurSettings(local_alpha=False))
+    assert not local_alpha_acts(DeblurSettings(local_alpha=True, alpha=1e-3))
+    assert not local_alpha_acts(DeblurSettings(local_alpha=True, alpha="cross-view"))
+    monocular = DeblurSettings(
+        local_alpha=True, motion_source="initial-flow", kernels="displacement"
+    )
+    assert not local_alpha_acts(monocular)
+    with pytest.raises(InputError, match="local_alpha"):
+        DeblurSettings(local_alpha=1)
+
+
+@pytest.mark.parametrize("source", ["gt", "sceneflow"])
+@pytest.mark.parametrize("noisy", [False, True])
+def test_local_alpha_solves_the_chosen_alpha_with_the_map_of_its_candidates(
+    scene, monkeypatch, source, noisy
+):
+    from stereodeblur.pipeline import frame as frame_module
+
+    settings = DeblurSettings(**GLOBAL, motion_source=source, alpha="held-out")
+    single = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
+    monkeypatch.setattr(frame_module, "LOCAL_ALPHA_NOISE", 0.0 if noisy else np.inf)
+    mapped, solves = [], []
+    scale = np.linspace(0.5, 2.0, 64 * 48, dtype=np.float32).reshape(48, 64)
+
+    def recorded_scale(alphas, errors, chosen, *, window):
+        mapped.append((list(alphas), chosen))
+        assert len(errors) == len(alphas) and window == LOCAL_ALPHA_WINDOW * 64
+        return scale
+
+    guarded = frame_module.guarded_solve
+
+    def recorded_solve(blurred, operator, terms, *args):
+        solves.append(terms)
+        return guarded(blurred, operator, terms, *args)
+
+    monkeypatch.setattr(frame_module, "local_scale", recorded_scale)
+    monkeypatch.setattr(frame_module, "guarded_solve", recorded_solve)
+    local = replace(settings, local_alpha=True)
+    frame = deblur_stereo_frame(scene, 1, settings=local, views=("left",)).frames["left"]
+    assert frame.alpha == single.alpha and single.alpha_scale is None  # the same choice
+    ((alphas, chosen),) = mapped
+    assert chosen == single.alpha and single.alpha in alphas
+    solved = {t.alpha for t in solves[:-1]}
+    least = (single.alpha / LOCAL_ALPHA_DOWN if noisy else single.alpha) * (1 - 1e-9)
+    assert set(alphas) == {a for a in solved if a >= least}  # every candidate in range
+    below = {a for a in CROSS_VIEW_ALPHAS if least <= a < single.alpha}
+    assert below <= set(alphas)  # the grid down to the least is solved for the map
+    assert solves[-1].alpha == single.alpha and solves[-1].alpha_scale is scale
+    assert frame.alpha_scale is scale
+    assert not np.array_equal(frame.image, single.image)

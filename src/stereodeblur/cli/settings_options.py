@@ -29,7 +29,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from ..settings import ALPHA_MAX, ALPHA_RULES, RANGE_WHOLE
+from ..settings import ALPHA_MAX, ALPHA_RULES, DEFAULT_LOCAL_ALPHA, RANGE_WHOLE
 from ..settings import ITERATIONS_RANGE as ITERATIONS
 from ..settings import RELABEL_RANGE as RELABEL
 from ..settings import SAMPLES_RANGE as SAMPLES
@@ -169,6 +169,15 @@ def _options() -> tuple[SettingOption, ...]:
             "--range-guard",
             "deblur with no motion where the estimate leaves [0, 1] over a region, and everywhere "
             f"if over {RANGE_WHOLE * 100:g} %% of the frame (default: on; the paper has none)",
+            switch=True,
+        ),
+        SettingOption(
+            "local_alpha",
+            "--local-alpha",
+            "with --alpha held-out, the prior weight per pixel: of the chosen alpha and the "
+            "candidates above it (on noisy frames also below), the one whose solution predicts the "
+            "other view and the neighbouring frames best around the pixel (default: "
+            f"{'on' if DEFAULT_LOCAL_ALPHA else 'off'}; off: one alpha per view, as in the paper)",
             switch=True,
         ),
     )

@@ -186,8 +186,10 @@ class _NormalEquations:
     :meth:`data_term` call.
     """
 
-    def __init__(self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=()):
-        self.b3, self.shape = blurred3, shape
+    def __init__(
+        self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=(), scale=None
+    ):
+        self.b3, self.shape, self.scale = blurred3, shape, scale
         self.own = _DataTerm(operator, blurred3, np.ones(shape[:2], np.float32), shape)
         self.extras = list(extras)
         self.alpha, self.exponent, self.epsilon = float(alpha), float(exponent), float(epsilon)
@@ -240,9 +242,17 @@ class _NormalEquations:
         return data
 
     def prior_term(self, estimate3d) -> float:
-        """``(2 / p) alpha sum h_eps(d I)``; sets the prior weights of Eq. 7 at ``I``."""
+        """``(2 / p) alpha sum s h_eps(d I)`` (``s``: the per-pixel ``scale`` of alpha, 1 if
+        None); sets the prior weights of Eq. 7 at ``I``."""
         smoothness_weights(
-            estimate3d, self.alpha, self.exponent, self.epsilon, self.wx, self.wy, self.partial
+            estimate3d,
+            self.alpha,
+            self.exponent,
+            self.epsilon,
+            self.wx,
+            self.wy,
+            self.partial,
+            self.scale,
         )
         return 2.0 * self.alpha / self.exponent * float(self.partial.sum())
 

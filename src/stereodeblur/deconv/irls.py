@@ -105,6 +105,16 @@ def _check_anchor(anchor, plane) -> np.ndarray | None:
     return np.ascontiguousarray(beta) if beta.any() else None
 
 
+def _check_scale(scale, plane) -> np.ndarray | None:
+    """``alpha_scale`` as C-contiguous float32, checked; None if not given."""
+    if scale is None:
+        return None
+    s = np.asarray(scale, dtype=np.float32)
+    if s.shape != plane or not np.all(np.isfinite(s) & (s >= 0)):
+        raise InputError(f"alpha_scale must be finite, >= 0 and of shape {plane}")
+    return np.ascontiguousarray(s)
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.flags.writeable = False
@@ -143,6 +153,7 @@ def deblur_irls(
     *,
     weights: np.ndarray | None = None,
     alpha: float = 1e-3,
+    alpha_scale: np.ndarray | None = None,
     exponent: float = 0.8,
     epsilon: float = 0.01,
     num_irls: int = 10,
@@ -187,6 +198,9 @@ def deblur_irls(
         (masked deblurring): such pixels are filled in by the prior.
     alpha : float
         Prior weight; the paper's 0.001 (Eq. 6).
+    alpha_scale : ndarray, shape (H, W), optional
+        ``s(x) >= 0``: the prior weight at pixel ``x`` is ``alpha s(x)`` (the prior's sum
+        weighted by ``s`` at each difference's first pixel); 1 everywhere by default.
     exponent, epsilon : float
         ``p`` of the robust norm ``|c|^p``, in (0, 2], and the floor of ``|c|`` in the IRLS
         weights; the paper's 0.8 and 0.01 (Eq. 6-7).
@@ -228,6 +242,7 @@ def deblur_irls(
             operator,
             weights=weights,
             settings=(alpha, exponent, epsilon),
+            scale=_check_scale(alpha_scale, blurred.shape[:2]),
             num_irls=int(num_irls),
             num_cg=int(num_cg),
             update_weights=update_weights,
@@ -245,6 +260,7 @@ def _deblur(
     *,
     weights,
     settings,
+    scale,
     num_irls,
     num_cg,
     update_weights,
@@ -269,7 +285,7 @@ def _deblur(
         for o in observations
     ]
     beta = _check_anchor(anchor, plane)
-    system = _NormalEquations(b3, shape, operator, *settings, beta, extras)
+    system = _NormalEquations(b3, shape, operator, *settings, beta, extras, scale)
     system.set_weights(w)
     estimate = b3.copy() if initial is None else _check_image(initial, shape, "initial")
     history = [system.energy(0, estimate, None)]

@@ -6,7 +6,8 @@ Gradients are forward differences, ``dx I (y, x) = I (y, x + 1) - I (y, x)`` and
 ``dy I (y, x) = I (y + 1, x) - I (y, x)``, set to 0 in the last column (``dx``) and the last
 row (``dy``) (Neumann boundary), per channel. The IRLS weights of Eq. 7 are
 ``alpha * max(|d I|, epsilon)^(p - 2)`` per pixel, channel and direction; they include
-``alpha`` and are 0 where the differences are identically zero.
+``alpha`` (times the pixel's ``scale`` where alpha varies over the image; a difference
+counts at its first pixel) and are 0 where the differences are identically zero.
 """
 
 from __future__ import annotations
@@ -94,9 +95,17 @@ def gradient_adjoint(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
 # --- IRLS weights (Eq. 7) and the weighted Laplacian of Eq. 8 ---------------------------
 
 
-def smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial) -> None:
-    """Eq. 7 weights of ``image`` into ``wx``, ``wy``; row sums of ``h_eps(d I)`` to ``partial``."""
-    by_rows(_smoothness_range, image, image, alpha, exponent, epsilon, wx, wy, partial)
+def smoothness_weights(image, alpha, exponent, epsilon, wx, wy, partial, scale=None) -> None:
+    """Eq. 7 weights of ``image`` into ``wx``, ``wy``; row sums of ``h_eps(d I)`` to ``partial``
+    (of ``scale * h_eps(d I)`` with a per-pixel ``scale`` of alpha, float32 ``(H, W)``)."""
+    if scale is None:
+        scale = _unit_scale(image.shape[:2])
+    by_rows(_smoothness_range, image, image, alpha, exponent, epsilon, wx, wy, partial, scale)
+
+
+def _unit_scale(plane) -> np.ndarray:
+    """Ones of shape ``plane``, float32: alpha the same at every pixel (exactly)."""
+    return np.ones(plane, np.float32)
 
 
 def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
@@ -104,7 +113,7 @@ def add_weighted_laplacian(x, wx, wy, out, partial) -> None:
     by_rows(_laplacian_rows, x, x, wx, wy, out, partial)
 
 
-def _smoothness_range(first, last, image, alpha, exponent, epsilon, wx, wy, partial) -> None:
+def _smoothness_range(first, last, image, alpha, exponent, epsilon, wx, wy, partial, scale):
     """:func:`smoothness_weights` on rows ``first .. last - 1``.
 
     ``max(|d I|, eps)`` by numba, its power by numpy (whose ``power`` is vectorised, unlike
@@ -117,12 +126,11 @@ def _smoothness_range(first, last, image, alpha, exponent, epsilon, wx, wy, part
     for weights in (wx, wy):
         rows = weights[first:last]
         np.power(rows, power, out=rows)
-    scale = np.float32(alpha)
     small = (
         0.5 * exponent * epsilon ** (exponent - 2.0),
         (1.0 - 0.5 * exponent) * epsilon**exponent,
     )
-    _smoothness_rows(first, last, image, floor, scale, small, wx, wy, partial)
+    _smoothness_rows(first, last, image, floor, np.float32(alpha), scale, small, wx, wy, partial)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -159,9 +167,10 @@ def _smoothed_power(difference, rho, floor, small):  # pragma: no cover - compil
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _smoothness_rows(
-    first, last, image, floor, scale, small, wx, wy, partial
+    first, last, image, floor, alpha, scale, small, wx, wy, partial
 ):  # pragma: no cover - compiled
-    """Scale ``rho`` in ``wx``, ``wy`` to the weights ``alpha rho``; row sums of ``h_eps(d I)``.
+    """Scale ``rho`` in ``wx``, ``wy`` to the weights ``alpha s rho`` (``s``: the pixel's
+    ``scale``); row sums of ``s h_eps(d I)``.
 
     ``h_eps(c) = |c|^p`` for ``|c| >= eps`` and ``(p/2) eps^(p-2) c^2 + (1 - p/2) eps^p``
     below: the function whose IRLS majoriser the weights are. The weights are 0 in the
@@ -177,10 +186,10 @@ def _smoothness_rows(
     inner = size - c if cols > 1 else U(0)
     h = np.empty(cols * channels)
     for i in range(first, last):
-        x_row, wx_row, wy_row = x2[i], wx2[i], wy2[i]
+        x_row, wx_row, wy_row, s_row = x2[i], wx2[i], wy2[i], scale[i]
         for k in range(inner):
             h[k] = _smoothed_power(x_row[k + c] - x_row[k], wx_row[k], floor, small)
-            wx_row[k] = scale * wx_row[k]
+            wx_row[k] = (alpha * s_row[k // c]) * wx_row[k]
         for k in range(inner, size):
             h[k] = 0.0
             wx_row[k] = 0.0
@@ -188,10 +197,12 @@ def _smoothness_rows(
             x_down = x2[i + 1]
             for k in range(size):
                 h[k] += _smoothed_power(x_down[k] - x_row[k], wy_row[k], floor, small)
-                wy_row[k] = scale * wy_row[k]
+                wy_row[k] = (alpha * s_row[k // c]) * wy_row[k]
         else:
             for k in range(size):
                 wy_row[k] = 0.0
+        for k in range(size):
+            h[k] *= s_row[k // c]
         partial[i, 0] = lane_sum(h)
 
 

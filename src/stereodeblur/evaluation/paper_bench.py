@@ -237,11 +237,11 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
 def _signature(column: Column, settings) -> dict:
     """What a cached result depends on (``observations`` only when not ``'single'``,
     ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
-    before those options stay valid; the versions of the alpha rules that predict the other
-    view, of the relabelling rule, of the true motion's fit and of the neighbouring frames'
-    data terms where they are observed)."""
-    from ..pipeline.alpha import rules_version
+    ``boundary_flow`` only when off, ``relabel_radius`` and ``local_alpha`` only where they
+    act, so results from before those options stay valid; the versions of the alpha rules
+    that predict the other view, of the relabelling rule, of the true motion's fit and of the
+    neighbouring frames' data terms where they are observed)."""
+    from ..pipeline.alpha import local_alpha_acts, local_alpha_signature, rules_version
     from ..pipeline.motion import relabel_rule
     from ..pipeline.observations import neighbours_version
     from ..sceneflow.from_gt import FIT_VERSION
@@ -257,6 +257,10 @@ def _signature(column: Column, settings) -> dict:
     ):
         if fields[name] == old:
             del fields[name]
+    if local_alpha_acts(own):
+        fields["local_alpha"] = local_alpha_signature(own).strip()
+    else:
+        del fields["local_alpha"]
     if relabel_rule(own) is None:
         del fields["relabel_radius"]
     else:

@@ -48,6 +48,17 @@ while the same error falls (:func:`below_floor`).
 With the true motion (``motion_source='gt'``) there is no motion error for the trust to
 guard against: the floor is the noise rule's alpha, and every candidate is scored by that
 untrimmed prediction through the other view's observation (:func:`true_motion_choice`).
+
+With ``local_alpha`` the chosen alpha is then scaled per pixel (:func:`local_scale`): the
+candidates' held-out errors are taken around each pixel (:func:`local_error`, a Gaussian window
+of :data:`~stereodeblur.settings.LOCAL_ALPHA_WINDOW` of the width) and each pixel takes the
+locally best candidate's alpha, smoothed in log alpha. One alpha cannot suit a frame whose
+content or blur varies: on a noisy street (street_1067) the fine stripes of a wall, nearly
+erased by the blur, want 3e-4 and the sharp, noisy centre 3e-3. Never below the chosen alpha
+unless the frame is noisy (:data:`~stereodeblur.settings.LOCAL_ALPHA_NOISE`), then down to
+:data:`~stereodeblur.settings.LOCAL_ALPHA_DOWN` times less: on a quiet frame a locally smaller
+alpha predicts the held-out frames better where the blur hides what it gets wrong (a finely
+striped disc, family_0006: -6.8 dB).
 """
 
 from __future__ import annotations
@@ -56,7 +67,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import map_coordinates
+from scipy.ndimage import gaussian_filter, map_coordinates
 
 from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
@@ -68,6 +79,9 @@ from ..settings import (
     HELD_OUT_NOISE_RATIO,
     HELD_OUT_STOP,
     HELD_OUT_TIE,
+    LOCAL_ALPHA_DOWN,
+    LOCAL_ALPHA_NOISE,
+    LOCAL_ALPHA_WINDOW,
     PAPER_ALPHA,
 )
 
@@ -97,6 +111,28 @@ def rules_version(settings) -> int | None:
     if not predicts or settings.motion_source == "initial-flow":
         return None
     return TRUE_MOTION_RULES_VERSION if true_motion_choice(settings) else RULES_VERSION
+
+
+def local_alpha_acts(settings) -> bool:
+    """Whether ``settings.local_alpha`` varies the prior weight over the view: with
+    ``'held-out'`` and a scene flow or the true motion (:func:`local_scale`)."""
+    held_out = settings.alpha == "held-out" and rules_version(settings) is not None
+    return bool(settings.local_alpha) and held_out
+
+
+LOCAL_ALPHA_VERSION = 2
+"""Version of the local alpha's rule in result caches (1: stop 54's first runs, which missed
+the least alpha by rounding)."""
+
+
+def local_alpha_signature(settings) -> str:
+    """The local alpha's constants where ``settings`` use it, else '' (for result caches)."""
+    if not local_alpha_acts(settings):
+        return ""
+    return (
+        f" local alpha {LOCAL_ALPHA_VERSION}: {LOCAL_ALPHA_WINDOW:g} down {LOCAL_ALPHA_DOWN:g}"
+        f" above noise {LOCAL_ALPHA_NOISE:g} share {LOCAL_MIN_SHARE:g}"
+    )
 
 
 def true_motion_choice(settings) -> bool:
@@ -265,3 +301,37 @@ def below_floor(floor: float, error: float, sigma: float) -> tuple[float, ...]:
     if noise >= floor or error >= HELD_OUT_NOISE_RATIO * 2.0 * sigma**2:
         return ()
     return (*(a for a in reversed(CROSS_VIEW_ALPHAS) if noise < a < floor), noise)
+
+
+LOCAL_MIN_SHARE = 0.1
+"""Least share of a window an observation must count for :func:`local_error` to score it."""
+
+
+def local_error(image: np.ndarray, observations, *, window: float, border: int) -> np.ndarray:
+    """Per pixel, the sum over ``observations`` of the mean squared error of its blurred frame
+    predicted from ``image`` around the pixel (Gaussian window of ``window`` px over the
+    pixels it sees with a data weight of at least :data:`HELD_OUT_MIN_WEIGHT`, ``border`` px
+    excluded): :func:`held_out_error` made local. NaN where an observation counts less than
+    :data:`LOCAL_MIN_SHARE` of the window."""
+    total = np.zeros(image.shape[:2])
+    for o in observations:
+        error = np.asarray(o.operator.forward(image), np.float64) - o.blurred
+        error = (error**2).mean(axis=-1) if error.ndim == 3 else error**2
+        counted = np.zeros(total.shape)
+        inner(counted, border)[...] = inner(o.weights, border) >= HELD_OUT_MIN_WEIGHT
+        share = gaussian_filter(counted, window)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = gaussian_filter(error * counted, window) / share
+        total += np.where(share >= LOCAL_MIN_SHARE, mean, np.nan)
+    return total
+
+
+def local_scale(alphas, errors, chosen: float, *, window: float) -> np.ndarray:
+    """Per-pixel factor of the ``chosen`` alpha, float32: at each pixel the candidate of
+    ``alphas`` whose :func:`local_error` (``errors``, one map per candidate) is least, its log
+    smoothed by the same Gaussian ``window``; 1 where no candidate is scored."""
+    errors = np.asarray(errors)
+    scored = np.isfinite(errors).all(axis=0)
+    best = np.argmin(np.where(np.isfinite(errors), errors, np.inf), axis=0)
+    logs = np.where(scored, np.log(np.asarray(alphas, np.float64))[best], np.log(chosen))
+    return np.exp(gaussian_filter(logs, window) - np.log(chosen)).astype(np.float32)

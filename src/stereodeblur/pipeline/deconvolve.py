@@ -40,6 +40,7 @@ def solve(
         operator,
         weights=terms.weights if weights is None else weights,
         alpha=terms.alpha,
+        alpha_scale=terms.alpha_scale,
         num_irls=settings.num_irls,
         num_cg=settings.num_cg,
         update_weights=terms.update,

@@ -19,13 +19,22 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
+from ..settings import (
+    CROSS_VIEW_ALPHAS,
+    LOCAL_ALPHA_DOWN,
+    LOCAL_ALPHA_NOISE,
+    LOCAL_ALPHA_WINDOW,
+    PAPER_ALPHA,
+    DeblurSettings,
+)
 from .alpha import (
     OtherView,
     below_floor,
     candidates,
     choose,
     held_out_error,
+    local_error,
+    local_scale,
     observed_error,
     other_view,
     own_error,
@@ -77,6 +86,8 @@ class FrameResult:
     observations the estimate used (``settings.observations``), e.g. ``('other-view',
     'next', 'previous')``. ``unexplained``: the pixels the range guard deblurred with no
     motion (``settings.range_guard``; bool ``(H, W)``), None where it found none.
+    ``alpha_scale``: the factor of ``alpha`` per pixel (``settings.local_alpha``; float32
+    ``(H, W)``), None where one alpha holds for the whole view.
     """
 
     index: int
@@ -90,6 +101,7 @@ class FrameResult:
     trust: np.ndarray | None = None
     observations: tuple = ()
     unexplained: np.ndarray | None = None
+    alpha_scale: np.ndarray | None = None
 
     @property
     def image(self) -> np.ndarray:
@@ -196,6 +208,7 @@ def deblur_view(
         terms.trust,
         tuple(o.name for o in observations),
         unexplained,
+        terms.alpha_scale,
     )
 
 
@@ -317,14 +330,28 @@ def _alpha_choice_solve(
         for alpha in below_floor(base.alpha, gated[0], base.noise_sigma):
             below = run(alpha)
             gated.append(observed_error(below.image, other.observation, border=border))
+            runs.append(below)
             if gated[-1] >= gated[-2] or below.own >= chosen.own:
                 break
             chosen = below
     terms, result, unexplained, image, _ = chosen
-    if observations:
-        if other.observation is not None:
+    scorers = [other.observation] if observed else held if len(held) > 1 else []
+    if settings.local_alpha and rule == "held-out" and scorers:
+        window = LOCAL_ALPHA_WINDOW * blurred.shape[1]
+        noisy = base.noise_sigma >= LOCAL_ALPHA_NOISE
+        least = (terms.alpha / LOCAL_ALPHA_DOWN if noisy else terms.alpha) * (1 - 1e-9)
+        lowest = min(r.terms.alpha for r in runs)
+        runs += [run(a) for a in CROSS_VIEW_ALPHAS if least <= a < lowest]
+        runs = [r for r in runs if r.terms.alpha >= least]
+        errors = [local_error(r.image, scorers, window=window, border=border) for r in runs]
+        alphas = [r.terms.alpha for r in runs]
+        terms = replace(terms, alpha_scale=local_scale(alphas, errors, terms.alpha, window=window))
+    if observations or terms.alpha_scale is not None:
+        if observations and other.observation is not None:
             observations = _weighed(observations, image, other.observation, border, progress)
-        report(progress, f"alpha {terms.alpha:g} with the further observations")
+        varying = " varying over the view" if terms.alpha_scale is not None else ""
+        further = " with the further observations" if observations else ""
+        report(progress, f"alpha {terms.alpha:g}{varying}{further}")
         terms = replace(terms, update=copy.deepcopy(base.update))
         result, unexplained = guarded_solve(
             blurred,

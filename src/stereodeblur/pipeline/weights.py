@@ -43,6 +43,8 @@ class DataTerms:
         The prior weight of Eq. 6 (:func:`resolve_alpha`).
     noise_sigma : float
         The blurred frame's noise estimate the alpha and the trust were computed from.
+    alpha_scale : ndarray, float32, shape (H, W), or None
+        Per-pixel factor of ``alpha`` (:func:`~.alpha.local_scale`); None: alpha everywhere.
     """
 
     weights: np.ndarray
@@ -51,6 +53,7 @@ class DataTerms:
     trust: np.ndarray | None
     alpha: float
     noise_sigma: float
+    alpha_scale: np.ndarray | None = None
 
     @property
     def steps(self) -> tuple:
