@@ -128,6 +128,7 @@ def main() -> None:
         "--relabel-radius", dest="relabel_radius", type=int, help="--relabel-radius of the run"
     )
     parser.add_argument(
+        "--local_alpha",
         "--local-alpha",
         dest="local_alpha",
         type={"on": True, "off": False, "True": True, "False": False}.__getitem__,

@@ -96,23 +96,19 @@ def _check_image(image, shape, name: str) -> np.ndarray:
     return image
 
 
+def _check_map(values, plane, name: str) -> np.ndarray | None:
+    """``values`` of shape ``plane`` as C-contiguous float32, finite and >= 0; None if None."""
+    if values is None:
+        return None
+    array = np.asarray(values, dtype=np.float32)
+    if array.shape != plane or not np.all(np.isfinite(array) & (array >= 0)):
+        raise InputError(f"{name} must be finite, >= 0 and of shape {plane}")
+    return np.ascontiguousarray(array)
+
+
 def _check_anchor(anchor, plane) -> np.ndarray | None:
-    if anchor is None:
-        return None
-    beta = np.asarray(anchor, dtype=np.float32)
-    if beta.shape != plane or not np.all(np.isfinite(beta) & (beta >= 0)):
-        raise InputError(f"anchor must be finite, >= 0 and of shape {plane}")
-    return np.ascontiguousarray(beta) if beta.any() else None
-
-
-def _check_scale(scale, plane) -> np.ndarray | None:
-    """``alpha_scale`` as C-contiguous float32, checked; None if not given."""
-    if scale is None:
-        return None
-    s = np.asarray(scale, dtype=np.float32)
-    if s.shape != plane or not np.all(np.isfinite(s) & (s >= 0)):
-        raise InputError(f"alpha_scale must be finite, >= 0 and of shape {plane}")
-    return np.ascontiguousarray(s)
+    beta = _check_map(anchor, plane, "anchor")
+    return beta if beta is not None and beta.any() else None
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -242,7 +238,7 @@ def deblur_irls(
             operator,
             weights=weights,
             settings=(alpha, exponent, epsilon),
-            scale=_check_scale(alpha_scale, blurred.shape[:2]),
+            scale=_check_map(alpha_scale, blurred.shape[:2], "alpha_scale"),
             num_irls=int(num_irls),
             num_cg=int(num_cg),
             update_weights=update_weights,
