@@ -149,7 +149,8 @@ LOCAL_ALPHA_WINDOW = 0.1
 # to LOCAL_ALPHA_DOWN times less. Train split (40 scenes, 320x240, true motion / scene flow):
 # down to one more grid alpha on every frame -0.03 / -0.02 dB (family_0006 -6.79, noise 0.009:
 # a finely striped disc), never down +0.09 / +0.02 (worst -0.13), down on noisy frames +0.17 /
-# +0.12 (worst -0.25); every frame of noise 0.013 or more gained going down, none of 0.009 or less
+# +0.12 (worst -0.25); going down against not, +0.34 dB over the 20 cells of noise 0.012 or more
+# (one lost 0.25), -0.22 dB over the 60 quieter ones (20 lost, down to -6.91 dB)
 # (results/calibrate_defaults_train_320x240_local_alpha*_stop54.md).
 LOCAL_ALPHA_DOWN = 10.0
 LOCAL_ALPHA_NOISE = 0.012
