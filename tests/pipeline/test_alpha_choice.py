@@ -622,11 +622,12 @@ def test_local_alpha_acts_with_held_out_and_a_motion_that_predicts_the_other_vie
 def test_local_alpha_solves_the_chosen_alpha_with_the_map_of_its_candidates(
     scene, monkeypatch, source, noisy
 ):
+    from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
     settings = DeblurSettings(**GLOBAL, motion_source=source, alpha="held-out")
     single = deblur_stereo_frame(scene, 1, settings=settings, views=("left",)).frames["left"]
-    monkeypatch.setattr(frame_module, "LOCAL_ALPHA_NOISE", 0.0 if noisy else np.inf)
+    monkeypatch.setattr(alpha_module, "LOCAL_ALPHA_NOISE", 0.0 if noisy else np.inf)
     mapped, solves = [], []
     scale = np.linspace(0.5, 2.0, 64 * 48, dtype=np.float32).reshape(48, 64)
 
@@ -641,7 +642,7 @@ def test_local_alpha_solves_the_chosen_alpha_with_the_map_of_its_candidates(
         solves.append(terms)
         return guarded(blurred, operator, terms, *args)
 
-    monkeypatch.setattr(frame_module, "local_scale", recorded_scale)
+    monkeypatch.setattr(alpha_module, "local_scale", recorded_scale)
     monkeypatch.setattr(frame_module, "guarded_solve", recorded_solve)
     local = replace(settings, local_alpha=True)
     frame = deblur_stereo_frame(scene, 1, settings=local, views=("left",)).frames["left"]

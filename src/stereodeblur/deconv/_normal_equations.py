@@ -189,7 +189,8 @@ class _NormalEquations:
     def __init__(
         self, blurred3, shape, operator, alpha, exponent, epsilon, beta, extras=(), scale=None
     ):
-        self.b3, self.shape, self.scale = blurred3, shape, scale
+        self.b3, self.shape = blurred3, shape
+        self.scale = np.ones(shape[:2], np.float32) if scale is None else scale
         self.own = _DataTerm(operator, blurred3, np.ones(shape[:2], np.float32), shape)
         self.extras = list(extras)
         self.alpha, self.exponent, self.epsilon = float(alpha), float(exponent), float(epsilon)
@@ -242,8 +243,8 @@ class _NormalEquations:
         return data
 
     def prior_term(self, estimate3d) -> float:
-        """``(2 / p) alpha sum s h_eps(d I)`` (``s``: the per-pixel ``scale`` of alpha, 1 if
-        None); sets the prior weights of Eq. 7 at ``I``."""
+        """``(2 / p) alpha sum s h_eps(d I)`` (``s``: the per-pixel ``scale`` of alpha);
+        sets the prior weights of Eq. 7 at ``I``."""
         smoothness_weights(
             estimate3d,
             self.alpha,

@@ -192,11 +192,9 @@ def deblur_irls(
     weights : ndarray, shape (H, W), optional
         Per-pixel data weights ``w`` in [0, 1], all ones by default. Zeros are allowed
         (masked deblurring): such pixels are filled in by the prior.
-    alpha : float
-        Prior weight; the paper's 0.001 (Eq. 6).
-    alpha_scale : ndarray, shape (H, W), optional
-        ``s(x) >= 0``: the prior weight at pixel ``x`` is ``alpha s(x)`` (the prior's sum
-        weighted by ``s`` at each difference's first pixel); 1 everywhere by default.
+    alpha, alpha_scale : float, ndarray (H, W) optional
+        Prior weight, the paper's 0.001 (Eq. 6), times ``alpha_scale >= 0`` at each
+        difference's first pixel (1 everywhere by default).
     exponent, epsilon : float
         ``p`` of the robust norm ``|c|^p``, in (0, 2], and the floor of ``|c|`` in the IRLS
         weights; the paper's 0.8 and 0.01 (Eq. 6-7).
@@ -238,7 +236,7 @@ def deblur_irls(
             operator,
             weights=weights,
             settings=(alpha, exponent, epsilon),
-            scale=_check_map(alpha_scale, blurred.shape[:2], "alpha_scale"),
+            scale=alpha_scale,
             num_irls=int(num_irls),
             num_cg=int(num_cg),
             update_weights=update_weights,
@@ -281,6 +279,7 @@ def _deblur(
         for o in observations
     ]
     beta = _check_anchor(anchor, plane)
+    scale = _check_map(scale, plane, "alpha_scale")
     system = _NormalEquations(b3, shape, operator, *settings, beta, extras, scale)
     system.set_weights(w)
     estimate = b3.copy() if initial is None else _check_image(initial, shape, "initial")

@@ -63,7 +63,7 @@ striped disc, family_0006: -6.8 dB).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -335,3 +335,21 @@ def local_scale(alphas, errors, chosen: float, *, window: float) -> np.ndarray:
     best = np.argmin(np.where(np.isfinite(errors), errors, np.inf), axis=0)
     logs = np.where(scored, np.log(np.asarray(alphas, np.float64))[best], np.log(chosen))
     return np.exp(gaussian_filter(logs, window) - np.log(chosen)).astype(np.float32)
+
+
+def local_terms(terms, runs, run, scorers, noise_sigma: float, *, border: int):
+    """The chosen candidate's data ``terms`` with the per-pixel factor of their alpha
+    (``local_alpha``): from the solved candidates ``runs`` (each with ``.terms`` and ``.image``)
+    no smaller than the chosen alpha, on a frame of noise ``noise_sigma`` of at least
+    :data:`LOCAL_ALPHA_NOISE` down to :data:`LOCAL_ALPHA_DOWN` times less (the grid alphas
+    missing there solved by ``run(alpha)``), scored by the held-out observations ``scorers``
+    around each pixel (:func:`local_error`, :func:`local_scale`)."""
+    window = LOCAL_ALPHA_WINDOW * terms.weights.shape[1]
+    noisy = noise_sigma >= LOCAL_ALPHA_NOISE
+    least = (terms.alpha / LOCAL_ALPHA_DOWN if noisy else terms.alpha) * (1 - 1e-9)
+    lowest = min(r.terms.alpha for r in runs)
+    runs = [r for r in runs if r.terms.alpha >= least]
+    runs += [run(a) for a in CROSS_VIEW_ALPHAS if least <= a < lowest]
+    errors = [local_error(r.image, scorers, window=window, border=border) for r in runs]
+    alphas = [r.terms.alpha for r in runs]
+    return replace(terms, alpha_scale=local_scale(alphas, errors, terms.alpha, window=window))

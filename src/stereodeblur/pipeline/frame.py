@@ -19,22 +19,14 @@ from ..deconv.noise import alpha_from_sigma
 from ..errors import InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
-from ..settings import (
-    CROSS_VIEW_ALPHAS,
-    LOCAL_ALPHA_DOWN,
-    LOCAL_ALPHA_NOISE,
-    LOCAL_ALPHA_WINDOW,
-    PAPER_ALPHA,
-    DeblurSettings,
-)
+from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
 from .alpha import (
     OtherView,
     below_floor,
     candidates,
     choose,
     held_out_error,
-    local_error,
-    local_scale,
+    local_terms,
     observed_error,
     other_view,
     own_error,
@@ -337,15 +329,7 @@ def _alpha_choice_solve(
     terms, result, unexplained, image, _ = chosen
     scorers = [other.observation] if observed else held if len(held) > 1 else []
     if settings.local_alpha and rule == "held-out" and scorers:
-        window = LOCAL_ALPHA_WINDOW * blurred.shape[1]
-        noisy = base.noise_sigma >= LOCAL_ALPHA_NOISE
-        least = (terms.alpha / LOCAL_ALPHA_DOWN if noisy else terms.alpha) * (1 - 1e-9)
-        lowest = min(r.terms.alpha for r in runs)
-        runs += [run(a) for a in CROSS_VIEW_ALPHAS if least <= a < lowest]
-        runs = [r for r in runs if r.terms.alpha >= least]
-        errors = [local_error(r.image, scorers, window=window, border=border) for r in runs]
-        alphas = [r.terms.alpha for r in runs]
-        terms = replace(terms, alpha_scale=local_scale(alphas, errors, terms.alpha, window=window))
+        terms = local_terms(terms, runs, run, scorers, base.noise_sigma, border=border)
     if observations or terms.alpha_scale is not None:
         if observations and other.observation is not None:
             observations = _weighed(observations, image, other.observation, border, progress)
