@@ -7,7 +7,7 @@ Run from the repository root::
     python benchmarks/bench_stereo_frame.py --alpha cross-view   # a setting other than the default
     python benchmarks/bench_stereo_frame.py --observations all --irls 6 --cg 10
     python benchmarks/bench_stereo_frame.py --interpolation cubic
-    python benchmarks/bench_stereo_frame.py --local-alpha on
+    python benchmarks/bench_stereo_frame.py --local-alpha always
 
 An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. A
 warm-up process on a 64x48 rendering of the same scene compiles the numba kernels into
@@ -34,6 +34,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from stereodeblur.settings import LOCAL_ALPHA_MODES
 
 VIEWS = ("left", "right")
 INDEX = 1
@@ -131,8 +133,8 @@ def main() -> None:
         "--local_alpha",
         "--local-alpha",
         dest="local_alpha",
-        type={"on": True, "off": False, "True": True, "False": False}.__getitem__,
-        help="--local-alpha (on) or --no-local-alpha (off) for the run",
+        choices=LOCAL_ALPHA_MODES,
+        help="--local-alpha of the run (default: the default)",
     )
     parser.add_argument("--child", nargs=2, metavar=("SCENE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()

@@ -103,7 +103,8 @@ CANDIDATES = {
     "no-relabel": {"relabel_radius": 0},
     "relabel-occlusion": {"boundary_flow": False},
     "census-0.004": {"sceneflow": SceneFlowSettings(census_threshold=0.004)},
-    "local-alpha": {"local_alpha": True},
+    "local-alpha": {"local_alpha": "always"},
+    "no-local-alpha": {"local_alpha": "off"},
 }
 """Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
 rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
@@ -116,7 +117,8 @@ counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`
 ``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
 ``no-relabel`` the estimate's own segment boundaries (the default until stop 34),
 ``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere and
-``local-alpha`` the prior weight varying over the view (stop 54);
+``local-alpha`` the prior weight varying over the view on every frame (stop 54) and
+``no-local-alpha`` one alpha per view (the default until stop 54);
 all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
 they were measured."""
 
@@ -239,7 +241,8 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
     if not local_alpha_acts(settings):
-        text = text.replace(f", local_alpha={settings.local_alpha}", "")
+        text = text.replace(f", local_alpha={settings.local_alpha!r}", "")
+    text = text.replace(", local_alpha='always'", ", local_alpha=True")  # stop 54's name
     if relabel_rule(settings) is None:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     else:
@@ -757,6 +760,12 @@ def parse(argv=None):
         "those already looked at (default 0)",
     )
     parser.add_argument("--kinds", default=",".join(KINDS), help="family,street (alternating)")
+    parser.add_argument(
+        "--only",
+        default="",
+        help="of those scenes, only these (comma-separated names, e.g. family_1049): the ones "
+        "a change can act on",
+    )
     parser.add_argument("--motions", default=",".join(MOTIONS), help="gt,sceneflow")
     parser.add_argument(
         "--work",
@@ -785,6 +794,7 @@ def parse(argv=None):
     args.size_pair = (width, height)
     args.kinds = tuple(k for k in args.kinds.split(",") if k)
     args.motions = tuple(m for m in args.motions.split(",") if m)
+    args.only = tuple(n for n in args.only.split(",") if n)
     names = args.candidates.split(",") if args.candidates != "none" else []
     args.candidates = tuple(n for n in names if n)
     if set(args.candidates) - set(CANDIDATES):
@@ -889,9 +899,18 @@ def _start_worker(parent: int) -> None:
 def main(argv=None) -> int:
     args = parse(argv)
     work = Path(args.work) / args.size
+    scenes = scene_list(args.split, args.scenes, args.kinds, args.skip)
+    missing = set(args.only) - {f"{kind}_{seed:04d}" for kind, seed in scenes}
+    if missing:
+        print(
+            f"error: --only names scenes not among these: {', '.join(sorted(missing))}",
+            file=sys.stderr,
+        )
+        return 2
     tasks = [
         (kind, seed, args.size_pair, str(work), args.motions, args.candidates, args.grid)
-        for kind, seed in scene_list(args.split, args.scenes, args.kinds, args.skip)
+        for kind, seed in scenes
+        if not args.only or f"{kind}_{seed:04d}" in args.only
     ]
     start = time.perf_counter()
     rows = run_all(run_scene, tasks, args.jobs)

@@ -37,6 +37,7 @@ __all__ = [
     "LOCAL_ALPHA_WINDOW",
     "LOCAL_ALPHA_DOWN",
     "LOCAL_ALPHA_NOISE",
+    "LOCAL_ALPHA_MODES",
     "DEFAULT_LOCAL_ALPHA",
     "MONOCULAR_BOUNDARY_WEIGHTS",
     "OBSERVATIONS",
@@ -121,7 +122,8 @@ CROSS_VIEW_KEEP = 0.9
 # Train split (40 scenes, 320x240; benchmarks/results/held_out_train_320x240.md): 'held-out'
 # goes below the trust's raise of its floor only where the floor's untrimmed prediction error
 # is within this many times 2 sigma^2; the default's rows "`held-out` upwards": 4, 8 and 16
-# alike (0.33 / 0.38 dB below the best alpha); stop 28's candidate rows: 2 worse.
+# alike (0.33 / 0.38 dB below the best alpha); stop 28's candidate rows: 2 worse. The local
+# alpha's gate reuses it per pixel (pipeline.alpha.local_terms; stop 55, LOCAL_ALPHA_MODES).
 HELD_OUT_NOISE_RATIO = 8.0
 # That error counts the pixels the other view sees with at least this data weight: counting
 # every seen pixel (> 0) counted the exposures that leave the view (weight 0.1) and lost
@@ -154,10 +156,16 @@ LOCAL_ALPHA_WINDOW = 0.1
 # (results/calibrate_defaults_train_320x240_local_alpha*_stop54.md).
 LOCAL_ALPHA_DOWN = 10.0
 LOCAL_ALPHA_NOISE = 0.012
-# Off: bench paper 36.53 -> 36.47 dB with it (objects -0.12 / -0.10, noiseless / noisy; its
-# frames are all quiet, so the map only rises there), against +0.07 / +0.03 dB on the test split
-# and +0.44 dB on 20 fresh test scenes (results/*local_alpha_stop54.md). The paper's is off.
-DEFAULT_LOCAL_ALPHA = False
+# Where the prior weight varies: 'off' (one alpha per view, the paper's), 'noisy' (only on a
+# frame whose noise estimate is at least LOCAL_ALPHA_NOISE) or 'always'.
+LOCAL_ALPHA_MODES = ("off", "noisy", "always")
+# 'noisy' (stop 55; README "On noisy frames only, where the motion explains them"): 'always'
+# cost bench paper 36.53 -> 36.47 dB (its frames are all quiet, so the map only rises there);
+# 'noisy' leaves quiet frames as 'off' (both benches identical) and gives, over 'off' (true
+# motion / scene flow), +0.08 / +0.09 dB on the train split (40 scenes, 320x240; worst
+# family_0014 -0.25), +0.06 / +0.03 on the test split at 320x240 and +0.09 / +0.05 at 640x480
+# (worst -0.12), +0.38 on 20 fresh test scenes (results/calibrate_defaults_*_stop55.md).
+DEFAULT_LOCAL_ALPHA = "noisy"
 # README.md "Where the defaults come from": Eq. 5 and zero weights lost on every object scene;
 # 'gated' over 'adaptive': 40 test scenes at 320x240 (benchmarks/results/
 # calibrate_defaults_test_320x240.md) +0.09 / +0.24 dB (true motion / scene flow), scenes more
@@ -372,11 +380,12 @@ class DeblurSettings:
         the further observations that see them dropped;
         :mod:`stereodeblur.deconv.intensity_range`); every pixel where such regions cover more
         than :data:`RANGE_WHOLE` of the frame. Default on; the paper has no such step.
-    local_alpha : bool
+    local_alpha : {'noisy', 'always', 'off'}
         With ``alpha='held-out'`` and held-out observations: the chosen alpha is scaled per
         pixel to the candidate that predicts them best around the pixel
         (:func:`stereodeblur.pipeline.alpha.local_scale`, :data:`LOCAL_ALPHA_WINDOW`) in the
-        final solve. Off: one alpha for the whole view (the paper's).
+        final solve; ``'noisy'`` only on a frame whose noise estimate is at least
+        :data:`LOCAL_ALPHA_NOISE`. ``'off'``: one alpha for the whole view (the paper's).
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -398,7 +407,7 @@ class DeblurSettings:
     boundary_flow: bool = DEFAULT_BOUNDARY_FLOW
     relabel_radius: int = RELABEL_RADIUS
     range_guard: bool = DEFAULT_RANGE_GUARD
-    local_alpha: bool = DEFAULT_LOCAL_ALPHA
+    local_alpha: str = DEFAULT_LOCAL_ALPHA
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -456,8 +465,11 @@ class DeblurSettings:
             raise InputError(f"boundary_flow must be True or False, got {self.boundary_flow!r}")
         if not isinstance(self.range_guard, bool):
             raise InputError(f"range_guard must be True or False, got {self.range_guard!r}")
-        if not isinstance(self.local_alpha, bool):
-            raise InputError(f"local_alpha must be True or False, got {self.local_alpha!r}")
+        if self.local_alpha not in LOCAL_ALPHA_MODES:
+            raise InputError(
+                f"local_alpha must be one of {', '.join(LOCAL_ALPHA_MODES)}, "
+                f"got {self.local_alpha!r}"
+            )
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(
                 f"sceneflow must be a SceneFlowSettings, got {type(self.sceneflow).__name__}"

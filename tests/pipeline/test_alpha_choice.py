@@ -1,6 +1,7 @@
 """Alpha chosen by predicting the other view: 'cross-view' and 'held-out'."""
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,8 +18,10 @@ from stereodeblur.pipeline.alpha import (
     choose,
     held_out_error,
     local_alpha_acts,
+    local_alpha_here,
     local_error,
     local_scale,
+    local_terms,
     observed_error,
     own_error,
     prediction_error,
@@ -34,6 +37,7 @@ from stereodeblur.settings import (
     HELD_OUT_STOP,
     HELD_OUT_TIE,
     LOCAL_ALPHA_DOWN,
+    LOCAL_ALPHA_NOISE,
     LOCAL_ALPHA_WINDOW,
     PAPER_ALPHA,
 )
@@ -41,7 +45,7 @@ from stereodeblur.synth.objects import make_object_scene
 from stereodeblur.synth.planar import write_rendered_scene
 
 FAST = {"num_irls": 2, "num_cg": 3, "num_samples": 8}
-GLOBAL = {**FAST, "local_alpha": False}  # one alpha per view: the choice's own solution
+GLOBAL = {**FAST, "local_alpha": "off"}  # one alpha per view: the choice's own solution
 
 
 class _Identity:
@@ -603,18 +607,75 @@ def test_the_local_scale_takes_the_best_candidate_around_each_pixel():
     np.testing.assert_allclose(scale[:, 50:], 10.0, rtol=1e-5)
 
 
+@dataclass(frozen=True)
+class _Terms:
+    alpha: float
+    weights: np.ndarray
+    alpha_scale: np.ndarray | None = None
+
+
+def test_the_local_alpha_goes_below_the_chosen_one_only_where_the_motion_explains():
+    sigma = LOCAL_ALPHA_NOISE  # a noisy frame: down to LOCAL_ALPHA_DOWN times less
+    observed = _texture((40, 200))
+    seen = np.ones(observed.shape, np.float32)
+    terms = _Terms(1e-3, seen)
+    explained = np.sqrt(HELD_OUT_NOISE_RATIO * 2.0 * sigma**2)  # the gate's error, per pixel
+    chosen = observed + np.where(np.arange(200) < 100, 1.5, 0.5) * explained  # left: not
+    runs = [
+        SimpleNamespace(terms=terms, image=chosen),
+        SimpleNamespace(terms=replace(terms, alpha=1e-4), image=observed),  # best everywhere
+    ]
+
+    def unused(alpha):
+        raise AssertionError(f"no grid alpha is missing, got {alpha}")
+
+    scorers = [Observation(_Identity(), observed, seen)] * 2  # the gate per observation
+    scale = local_terms(terms, runs, unused, scorers, sigma, border=4).alpha_scale
+    np.testing.assert_allclose(scale[4:-4, 4:30], 1.0, rtol=0.02)  # kept: the motion fails
+    np.testing.assert_allclose(scale[4:-4, 170:-4], 0.1, rtol=0.02)  # explained: below
+    quiet = local_terms(terms, runs, unused, scorers, 0.5 * sigma, border=4).alpha_scale
+    np.testing.assert_allclose(quiet, 1.0, rtol=1e-6)  # a quiet frame never goes below
+
+
 def test_local_alpha_acts_with_held_out_and_a_motion_that_predicts_the_other_view():
-    assert local_alpha_acts(DeblurSettings(local_alpha=True))
-    assert local_alpha_acts(DeblurSettings(local_alpha=True, motion_source="gt"))
-    assert not local_alpha_acts(DeblurSettings(local_alpha=False))
-    assert not local_alpha_acts(DeblurSettings(local_alpha=True, alpha=1e-3))
-    assert not local_alpha_acts(DeblurSettings(local_alpha=True, alpha="cross-view"))
-    monocular = DeblurSettings(
-        local_alpha=True, motion_source="initial-flow", kernels="displacement"
-    )
+    assert local_alpha_acts(DeblurSettings())
+    assert local_alpha_acts(DeblurSettings(local_alpha="always", motion_source="gt"))
+    assert not local_alpha_acts(DeblurSettings(local_alpha="off"))
+    assert not local_alpha_acts(DeblurSettings(alpha=1e-3))
+    assert not local_alpha_acts(DeblurSettings(alpha="cross-view"))
+    monocular = DeblurSettings(motion_source="initial-flow", kernels="displacement")
     assert not local_alpha_acts(monocular)
-    with pytest.raises(InputError, match="local_alpha"):
-        DeblurSettings(local_alpha=1)
+    for wrong in (True, 1, "on"):
+        with pytest.raises(InputError, match="local_alpha must be one of off, noisy, always"):
+            DeblurSettings(local_alpha=wrong)
+
+
+def test_local_alpha_noisy_acts_from_the_noise_threshold_up():
+    noisy, always = DeblurSettings(), DeblurSettings(local_alpha="always")
+    assert DeblurSettings().local_alpha == "noisy"
+    assert not local_alpha_here(noisy, LOCAL_ALPHA_NOISE * 0.99)
+    assert local_alpha_here(noisy, LOCAL_ALPHA_NOISE)
+    assert local_alpha_here(always, 0.0)
+    assert not local_alpha_here(DeblurSettings(local_alpha="off"), 1.0)
+    assert not local_alpha_here(DeblurSettings(alpha=1e-3), 1.0)
+
+
+@pytest.mark.parametrize("noisy", [False, True])
+def test_local_alpha_noisy_is_always_on_noisy_frames_and_off_on_quiet_ones(
+    scene, monkeypatch, noisy
+):
+    from stereodeblur.pipeline import alpha as alpha_module
+
+    monkeypatch.setattr(alpha_module, "LOCAL_ALPHA_NOISE", 0.0 if noisy else np.inf)
+    frames = {
+        mode: deblur_stereo_frame(
+            scene, 1, settings=DeblurSettings(**FAST, local_alpha=mode), views=("left",)
+        ).frames["left"]
+        for mode in ("noisy", "always" if noisy else "off")
+    }
+    same = frames["always" if noisy else "off"]
+    assert (frames["noisy"].alpha_scale is None) == (not noisy)
+    np.testing.assert_array_equal(frames["noisy"].image, same.image)
 
 
 @pytest.mark.parametrize("source", ["gt", "sceneflow"])
@@ -644,7 +705,7 @@ def test_local_alpha_solves_the_chosen_alpha_with_the_map_of_its_candidates(
 
     monkeypatch.setattr(alpha_module, "local_scale", recorded_scale)
     monkeypatch.setattr(frame_module, "guarded_solve", recorded_solve)
-    local = replace(settings, local_alpha=True)
+    local = replace(settings, local_alpha="always")
     frame = deblur_stereo_frame(scene, 1, settings=local, views=("left",)).frames["left"]
     assert frame.alpha == single.alpha and single.alpha_scale is None  # the same choice
     ((alphas, chosen),) = mapped

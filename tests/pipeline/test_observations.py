@@ -168,7 +168,7 @@ def test_without_a_scene_flow_each_frame_has_its_single_observation(scene):
 
 def test_a_given_motion_keeps_the_single_observation_and_bad_values_are_named(scene):
     # One alpha per view: a given motion has no other view to vary it by (local_alpha).
-    one = {**FAST, "motion_source": "gt", "local_alpha": False}
+    one = {**FAST, "motion_source": "gt", "local_alpha": "off"}
     settings = DeblurSettings(**one, observations="other-view")
     single = DeblurSettings(**one, observations="single")
     alone = deblur_frame(scene, 1, settings=single)

@@ -29,7 +29,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from ..settings import ALPHA_MAX, ALPHA_RULES, DEFAULT_LOCAL_ALPHA, RANGE_WHOLE
+from ..settings import ALPHA_MAX, ALPHA_RULES, RANGE_WHOLE
 from ..settings import ITERATIONS_RANGE as ITERATIONS
 from ..settings import RELABEL_RANGE as RELABEL
 from ..settings import SAMPLES_RANGE as SAMPLES
@@ -176,9 +176,10 @@ def _options() -> tuple[SettingOption, ...]:
             "--local-alpha",
             "with --alpha held-out, the prior weight per pixel: of the chosen alpha and the "
             "candidates above it (on noisy frames also below), the one whose solution predicts the "
-            "other view and the neighbouring frames best around the pixel (default: "
-            f"{'on' if DEFAULT_LOCAL_ALPHA else 'off'}; off: one alpha per view, as in the paper)",
-            switch=True,
+            "other view and the neighbouring frames best around the pixel; noisy: on frames of "
+            f"noise estimate >= {s.LOCAL_ALPHA_NOISE:g} only, always, or off: one alpha per view, "
+            "as in the paper (default: %(default)s)",
+            choices=tuple(s.LOCAL_ALPHA_MODES),
         ),
     )
 
