@@ -242,7 +242,6 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = text.replace(", boundary_flow=True", "")
     if not local_alpha_acts(settings):
         text = text.replace(f", local_alpha={settings.local_alpha!r}", "")
-    text = text.replace(", local_alpha='always'", ", local_alpha=True")  # stop 54's name
     if relabel_rule(settings) is None:
         text = text.replace(f", relabel_radius={settings.relabel_radius}", "")
     else:
