@@ -327,8 +327,10 @@ def local_error(image: np.ndarray, observations, *, window: float, border: int) 
     :data:`LOCAL_MIN_SHARE` of the window."""
     total = np.zeros(image.shape[:2])
     for o in observations:
-        error = np.asarray(o.operator.forward(image), np.float64) - o.blurred
-        error = (error**2).mean(axis=-1) if error.ndim == 3 else error**2
+        error = np.zeros(total.shape)
+        inner(error, border)[...] = pixel_errors(
+            o.operator.forward(image), o.blurred, border=border
+        )
         counted = np.zeros(total.shape)
         inner(counted, border)[...] = inner(o.weights, border) >= HELD_OUT_MIN_WEIGHT
         share = gaussian_filter(counted, window)

@@ -329,7 +329,7 @@ def _alpha_choice_solve(
             chosen = below
     terms, result, unexplained, image, _ = chosen
     scorers = [other.observation] if observed else held if len(held) > 1 else []
-    if local_alpha_here(settings, base.noise_sigma) and rule == "held-out" and scorers:
+    if local_alpha_here(settings, base.noise_sigma) and scorers:
         terms = local_terms(terms, runs, run, scorers, base.noise_sigma, border=border)
     if observations or terms.alpha_scale is not None:
         if observations and other.observation is not None:
