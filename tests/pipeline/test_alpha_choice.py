@@ -34,6 +34,7 @@ from stereodeblur.settings import (
     CROSS_VIEW_KEEP,
     HELD_OUT_MIN_WEIGHT,
     HELD_OUT_NOISE_RATIO,
+    HELD_OUT_SPAN,
     HELD_OUT_STOP,
     HELD_OUT_TIE,
     LOCAL_ALPHA_DOWN,
@@ -186,24 +187,31 @@ def test_held_out_takes_the_tied_predictor_nearest_the_papers_alpha():
     assert choose([1.0, 1.0], "held-out", (PAPER_ALPHA / 2, PAPER_ALPHA * 2)) == 1
 
 
-def test_held_out_searches_past_a_bump_and_stops_at_a_rise():
+def test_held_out_searches_past_a_bump_and_stops_at_a_rise_a_decade_up():
     bump, rise = 1.0 + 0.5 * HELD_OUT_STOP, 1.0 + 2 * HELD_OUT_STOP
     assert HELD_OUT_TIE < 0.5 * HELD_OUT_STOP
-    assert not searched("held-out", [1.0])
-    assert not searched("held-out", [1.0, bump])  # family_1032's 7.6 % bump
-    assert not searched("held-out", [1.0, bump, 0.5])
-    assert searched("held-out", [1.0, rise])
-    assert searched("held-out", [1.0, bump, 0.5, 0.5 * rise])
-    assert not searched("cross-view", [1.0, rise])
+    decade = (1e-4, 3e-4, 1e-3, 3e-3)
+    assert not searched("held-out", [1.0], decade[:1])
+    assert not searched("held-out", [1.0, bump], decade[:2])  # family_1032's 7.6 % bump
+    assert not searched("held-out", [1.0, bump, 0.5], decade[:3])
+    assert searched("held-out", [1.0, rise, rise], decade[:3])
+    assert searched("held-out", [1.0, bump, 0.5, 0.5 * rise], (1e-5, 3e-5, 1e-4, 1e-3))
+    # a rise within a decade of the best: not yet (family_1060: 2.1e-5 and 3e-5 ring)
+    assert not searched("held-out", [1.0, rise], decade[:2])
+    assert not searched("held-out", [1.0, rise, rise], (2.1e-5, 3e-5, 1e-4))
+    assert searched("held-out", [1.0, rise, rise, rise], (2.1e-5, 3e-5, 1e-4, 3e-4))
+    assert HELD_OUT_SPAN == pytest.approx(10.0)
+    assert not searched("cross-view", [1.0, rise, rise], decade[:3])
 
 
-def _searched_as_held_out(errors, count):
-    """Whether ``errors`` is what 'held-out' scores on ``count`` candidates: each but the last
-    within the stop share of the least so far, the last past it unless all were solved."""
+def _searched_as_held_out(errors, alphas, count):
+    """Whether ``errors`` of the candidates ``alphas`` is what 'held-out' scores on ``count``
+    candidates: the search went on past each but the last, and stopped at the last unless all
+    were solved."""
     assert 2 <= len(errors) <= count
-    for k in range(1, len(errors) - 1):
-        assert errors[k] <= (1 + HELD_OUT_STOP) * min(errors[:k])
-    assert len(errors) == count or errors[-1] > (1 + HELD_OUT_STOP) * min(errors)
+    for k in range(1, len(errors)):
+        assert not searched("held-out", errors[:k], alphas[:k])
+    assert len(errors) == count or searched("held-out", errors, alphas)
 
 
 @pytest.fixture(scope="module")
@@ -285,7 +293,7 @@ def test_held_out_takes_the_best_predictor_of_auto_and_the_grid_above_it(
         assert all(len(observed) == 3 for observed in held)
     auto = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha="auto")).frames["left"]
     candidates = [auto.alpha, *(a for a in CROSS_VIEW_ALPHAS if a > auto.alpha)]
-    _searched_as_held_out(errors, len(candidates))
+    _searched_as_held_out(errors, candidates[: len(errors)], len(candidates))
     assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
     fixed = replace(settings, alpha=chosen.alpha)
     expected = deblur_stereo_frame(scene, 1, settings=fixed).frames["left"]
@@ -394,17 +402,18 @@ def test_held_out_skips_a_best_predictor_that_a_larger_alpha_fits_better(scene, 
     assert calls == 3 and alpha == grid[0] and next(fits, None) is None
 
 
-def test_held_out_stops_once_the_prediction_error_rises(scene, monkeypatch):
-    errors = [3.0, 2.0, 2.5, 1.0, 0.5, 0.1]  # a later, lower minimum is not searched
+def test_held_out_stops_once_the_prediction_error_rises_a_decade_up(scene, monkeypatch):
+    errors = [3.0, 2.0, 2.5, 2.5, 1.0, 0.1]  # a later, lower minimum is not searched
     assert 2.5 > (1 + HELD_OUT_STOP) * 2.0
-    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 8, 16, 32), errors)
-    assert calls == 3 and alpha == grid[0]
+    # the best at 2x; the rise at 4x is within a decade of it, the one at 40x is not
+    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 40, 80, 160), errors)
+    assert calls == 4 and alpha == grid[0]
 
 
 def test_held_out_searches_past_a_bump_to_a_later_minimum(scene, monkeypatch):
     bump = 1.0 + 0.5 * HELD_OUT_STOP
     errors = [1.0, bump, 0.5, 0.5 * (1 + 2 * HELD_OUT_STOP), 0.1]
-    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 8, 16), errors)
+    calls, alpha, grid = _scripted_held_out(scene, monkeypatch, (2, 4, 40, 80), errors)
     assert calls == 4 and alpha == grid[1]
 
 
@@ -475,7 +484,7 @@ def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkey
     auto = deblur_stereo_frame(
         scene, 1, settings=replace(settings, alpha="auto"), views=("left",)
     ).frames["left"]
-    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", (auto.alpha * 2, auto.alpha * 4))
+    monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", (auto.alpha * 10, auto.alpha * 20))
     below = tuple(auto.alpha / k for k in (2, 4, 8, 16))
     gated = []
 
@@ -483,7 +492,7 @@ def test_held_out_goes_below_its_floor_while_the_gates_error_falls(scene, monkey
         gated.append((floor, error))
         return below
 
-    upwards = iter([1.0, 2.0])  # the floor beats the grid above it
+    upwards = iter([1.0, 2.0])  # the floor beats the grid a decade above it
     downwards = iter([0.9, 0.5, 0.25, 0.3])  # the floor's, then down to a rise
     monkeypatch.setattr(frame_module, "below_floor", tried)
     for score in ("prediction_error", "held_out_error"):
@@ -561,7 +570,7 @@ def test_held_out_with_the_true_motion_scores_the_observation_from_the_noise_rul
     noise = alpha_from_sigma(estimate_noise_sigma(chosen.blurred))
     assert noise < auto.alpha  # the trust raised 'auto'; the true motion's choice starts below
     candidates = [noise, *(a for a in CROSS_VIEW_ALPHAS if a > noise)]
-    _searched_as_held_out(errors, len(candidates))
+    _searched_as_held_out(errors, candidates[: len(errors)], len(candidates))
     assert chosen.alpha == candidates[choose(errors, "held-out", candidates)]
     fixed = deblur_stereo_frame(scene, 1, settings=replace(settings, alpha=chosen.alpha))
     np.testing.assert_array_equal(chosen.image, fixed.frames["left"].image)

@@ -15,7 +15,8 @@ regularisation for noisy frames. ``'held-out'`` therefore keeps the best predict
 alphas no smaller than the noise rule's, raised by the motion's trust, and among predictors
 within :data:`~stereodeblur.settings.HELD_OUT_TIE` of the best (a flat error curve, which cannot
 tell them apart) the alpha nearest the paper's. It solves them from the smallest up and stops
-once an error is more than :data:`~stereodeblur.settings.HELD_OUT_STOP` above the least. An
+once an error is more than :data:`~stereodeblur.settings.HELD_OUT_STOP` above the least, a
+decade (:data:`~stereodeblur.settings.HELD_OUT_SPAN`) or more above the least's alpha. An
 estimated motion that the range guard rejects over the whole view at the paper's alpha is
 rejected at every larger candidate too, where a strong prior can hide the failure (the
 pipeline's ``_alpha_choice_solve``). ``'cross-view'`` takes
@@ -79,6 +80,7 @@ from ..settings import (
     CROSS_VIEW_STEP,
     HELD_OUT_MIN_WEIGHT,
     HELD_OUT_NOISE_RATIO,
+    HELD_OUT_SPAN,
     HELD_OUT_STOP,
     HELD_OUT_TIE,
     LOCAL_ALPHA_DOWN,
@@ -90,9 +92,10 @@ from ..settings import (
 if TYPE_CHECKING:
     from ..deconv.irls import Observation
 
-RULES_VERSION = 13
+RULES_VERSION = 14
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of
-cached benchmark results (9, 10 and 12 were candidates of stops 41, 42 and 52, not adopted): 13
+cached benchmark results (9, 10 and 12 were candidates of stops 41, 42 and 52, not adopted): 14
+since stop 56 (the search spans a decade above the best predictor, :func:`searched`), 13
 since stop 53 (a candidate that a larger alpha fits as well in the view's own frame is dropped,
 :func:`undominated`), 11 since stop 46 (with the neighbouring frames observed, candidates scored
 by :func:`held_out_error`), 8 since stop 38 (the search goes past small bumps; a motion the
@@ -100,9 +103,9 @@ range guard rejects over the whole view at the paper's alpha is rejected above i
 stop 37 (ties broken towards the paper's alpha), 6 since stop 31 (every candidate
 range-guarded before it is scored), 5 since stop 29 (the noise gate below the floor), 1 before
 (2 to 4 were candidates of stops 28 and 29, not adopted)."""
-TRUE_MOTION_RULES_VERSION = 10
-"""The same with the true motion: 10 since stop 53, 9 since stop 38, 8 since stop 37, 7 since
-stop 33 (:func:`true_motion_choice`)."""
+TRUE_MOTION_RULES_VERSION = 11
+"""The same with the true motion: 11 since stop 56, 10 since stop 53, 9 since stop 38, 8 since
+stop 37, 7 since stop 33 (:func:`true_motion_choice`)."""
 
 
 def rules_version(settings) -> int | None:
@@ -251,11 +254,17 @@ def tied(errors) -> list[int]:
     return [k for k, error in enumerate(errors) if error <= (1.0 + HELD_OUT_TIE) * least]
 
 
-def searched(rule: str, errors) -> bool:
-    """Whether ``rule`` needs no further candidate after these prediction errors:
-    ``'held-out'`` stops once the last error is more than :data:`HELD_OUT_STOP` above the
-    least (it searches past a smaller bump)."""
-    return rule == "held-out" and errors[-1] > (1.0 + HELD_OUT_STOP) * min(errors)
+def searched(rule: str, errors, alphas) -> bool:
+    """Whether ``rule`` needs no further candidate after these prediction errors of the
+    candidates ``alphas``: ``'held-out'`` stops once the last error is more than
+    :data:`HELD_OUT_STOP` above the least (it searches past a smaller bump) and the last alpha
+    is at least :data:`HELD_OUT_SPAN` times the least's (a larger alpha that fits the view's
+    own frame better shows the least's solve ringing, :func:`undominated`)."""
+    if rule != "held-out":
+        return False
+    least = int(np.argmin(errors))
+    risen = errors[-1] > (1.0 + HELD_OUT_STOP) * errors[least]
+    return risen and alphas[-1] >= HELD_OUT_SPAN * alphas[least] * (1 - 1e-9)
 
 
 def choose(errors, rule: str = "cross-view", alphas=()) -> int:

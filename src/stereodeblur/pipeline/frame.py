@@ -312,7 +312,7 @@ def _alpha_choice_solve(
         if judged and alpha <= PAPER_ALPHA:
             rejected = _whole_view(runs[-1].unexplained)
         errors.append(score(runs[-1].image))
-        if searched(rule, errors):
+        if searched(rule, errors, [r.terms.alpha for r in runs]):
             break
     alphas = [run.terms.alpha for run in runs]
     kept = undominated(alphas, [r.own for r in runs]) if rule == "held-out" else range(len(runs))
