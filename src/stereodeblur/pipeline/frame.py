@@ -306,15 +306,15 @@ def _alpha_choice_solve(
             return held_out_error(image, held, border=border)
         return prediction_error(image, other, border=border)
 
-    runs, errors = [], []
+    runs, errors, alphas = [], [], []
     for alpha in candidates(rule, floor):
         runs.append(run(alpha, rejected if alpha > PAPER_ALPHA else None))
         if judged and alpha <= PAPER_ALPHA:
             rejected = _whole_view(runs[-1].unexplained)
         errors.append(score(runs[-1].image))
-        if searched(rule, errors, [r.terms.alpha for r in runs]):
+        alphas.append(alpha)
+        if searched(rule, errors, alphas):
             break
-    alphas = [run.terms.alpha for run in runs]
     kept = undominated(alphas, [r.own for r in runs]) if rule == "held-out" else range(len(runs))
     best = kept[choose([errors[k] for k in kept], rule, [alphas[k] for k in kept])]
     chosen = runs[best]
