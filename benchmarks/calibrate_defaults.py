@@ -806,6 +806,10 @@ def parse(argv=None):
         parser.error("--scenes and --jobs must be at least 1")
     if args.skip < 0 or args.skip % len(args.kinds):
         parser.error(f"--skip must be a multiple of the number of kinds, got {args.skip}")
+    scenes = scene_list(args.split, args.scenes, args.kinds, args.skip)
+    missing = set(args.only) - {f"{kind}_{seed:04d}" for kind, seed in scenes}
+    if missing:
+        parser.error(f"--only names scenes not among these: {', '.join(sorted(missing))}")
     if args.output is None:
         args.output = f"benchmarks/results/calibrate_defaults_{args.split}_{args.size}.md"
     return args
@@ -898,17 +902,9 @@ def _start_worker(parent: int) -> None:
 def main(argv=None) -> int:
     args = parse(argv)
     work = Path(args.work) / args.size
-    scenes = scene_list(args.split, args.scenes, args.kinds, args.skip)
-    missing = set(args.only) - {f"{kind}_{seed:04d}" for kind, seed in scenes}
-    if missing:
-        print(
-            f"error: --only names scenes not among these: {', '.join(sorted(missing))}",
-            file=sys.stderr,
-        )
-        return 2
     tasks = [
         (kind, seed, args.size_pair, str(work), args.motions, args.candidates, args.grid)
-        for kind, seed in scenes
+        for kind, seed in scene_list(args.split, args.scenes, args.kinds, args.skip)
         if not args.only or f"{kind}_{seed:04d}" in args.only
     ]
     start = time.perf_counter()

@@ -110,6 +110,10 @@ def test_scene_lists_follow_the_split(runner):
         runner.parse(["--kinds", "forest"])
     with pytest.raises(SystemExit):
         runner.parse(["--skip", "3"])  # not a multiple of the two kinds
+    only = ["--split", "test", "--scenes", "4", "--skip", "40", "--only"]
+    assert runner.parse([*only, "street_1020,family_1021"]).only == ("street_1020", "family_1021")
+    with pytest.raises(SystemExit):
+        runner.parse([*only, "family_1022"])  # not among the four scenes
 
 
 def test_monocular_check_needs_every_semi_real_scene(runner):

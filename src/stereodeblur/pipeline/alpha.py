@@ -134,8 +134,8 @@ def local_alpha_here(settings, noise_sigma: float) -> bool:
 
 LOCAL_ALPHA_VERSION = 3
 """Version of the local alpha's rule in result caches (3: below the chosen alpha only where the
-motion explains the held-out observations, stop 55; 1: stop 54's first runs, which missed the
-least alpha by rounding)."""
+motion explains the held-out observations, stop 55; 2: stop 54; 1: stop 54's first runs,
+which missed the least alpha by rounding)."""
 
 
 def local_alpha_signature(settings) -> str:
