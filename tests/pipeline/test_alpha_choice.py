@@ -432,8 +432,10 @@ def _guard_verdicts(monkeypatch, verdicts):
     return calls
 
 
-@pytest.mark.parametrize("above", [False, True])
-def test_a_motion_rejected_at_the_papers_alpha_is_rejected_above_it(scene, monkeypatch, above):
+@pytest.mark.parametrize("where", ["floor", "paper", "above"])
+def test_a_motion_rejected_at_the_floor_or_the_papers_alpha_is_rejected_above_it(
+    scene, monkeypatch, where
+):
     from stereodeblur.pipeline import alpha as alpha_module
     from stereodeblur.pipeline import frame as frame_module
 
@@ -448,16 +450,19 @@ def test_a_motion_rejected_at_the_papers_alpha_is_rejected_above_it(scene, monke
     monkeypatch.setattr(alpha_module, "CROSS_VIEW_ALPHAS", grid)
     errors = iter([3.0, 2.0, 1.0])  # the largest alpha predicts best
     monkeypatch.setattr(frame_module, "prediction_error", lambda *a, border: next(errors))
-    if above:  # the floor is above the paper's alpha: one more solve there, not a candidate
+    if where == "above":  # the floor is above the paper's alpha: one more solve there
         monkeypatch.setattr(frame_module, "PAPER_ALPHA", auto.alpha / 2)
         guard = _guard_verdicts(monkeypatch, [True])
-    else:  # the guard rejects the motion at the paper's alpha only
+    elif where == "paper":  # the guard rejects the motion at the paper's alpha only
         monkeypatch.setattr(frame_module, "PAPER_ALPHA", grid[0])
         guard = _guard_verdicts(monkeypatch, [False, True])
+    else:  # at the floor, below the paper's alpha: no candidate above is guarded again
+        monkeypatch.setattr(frame_module, "PAPER_ALPHA", grid[1])
+        guard = _guard_verdicts(monkeypatch, [True])
     with pytest.warns(UserWarning, match="range guard"):
         chosen = deblur_stereo_frame(scene, 1, settings=settings, views=("left",))
     chosen = chosen.frames["left"]
-    assert len(guard) == (1 if above else 2) and next(errors, None) is None
+    assert len(guard) == (2 if where == "paper" else 1) and next(errors, None) is None
     assert chosen.alpha == grid[1] and chosen.unexplained.all()
     _guard_verdicts(monkeypatch, [True])  # a fixed alpha, rejected by its own guard
     with pytest.warns(UserWarning, match="range guard"):

@@ -290,10 +290,11 @@ def _alpha_choice_solve(
 
     observed = true_motion_choice(settings) and other.observation is not None
     floor = alpha_from_sigma(base.noise_sigma) if observed else base.alpha
-    # An estimated motion the guard rejects over the whole view at the paper's alpha is
-    # rejected at every larger alpha, where the prior can hide its failure.
+    # An estimated motion the guard rejects over the whole view at the floor or at the
+    # paper's alpha is rejected at every larger alpha, where the prior can hide its failure.
     judged = settings.range_guard and not observed
     rejected = _whole_view(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
+    rejected_from = PAPER_ALPHA
 
     held = [o.observation for o in observations if o.name in NEIGHBOURS]
     if held and other.observation is not None:
@@ -306,11 +307,14 @@ def _alpha_choice_solve(
             return held_out_error(image, held, border=border)
         return prediction_error(image, other, border=border)
 
+    def guarded(alpha) -> _Candidate:
+        return run(alpha, rejected if alpha > rejected_from else None)
+
     runs, errors, alphas = [], [], []
     for alpha in candidates(rule, floor):
-        runs.append(run(alpha, rejected if alpha > PAPER_ALPHA else None))
-        if judged and alpha <= PAPER_ALPHA:
-            rejected = _whole_view(runs[-1].unexplained)
+        runs.append(guarded(alpha))
+        if judged and alpha <= PAPER_ALPHA and rejected is None:
+            rejected, rejected_from = _whole_view(runs[-1].unexplained), alpha
         errors.append(score(runs[-1].image))
         alphas.append(alpha)
         if searched(rule, errors, alphas):
@@ -330,7 +334,7 @@ def _alpha_choice_solve(
     terms, result, unexplained, image, _ = chosen
     scorers = [other.observation] if observed else held if len(held) > 1 else []
     if local_alpha_here(settings, base.noise_sigma) and scorers:
-        terms = local_terms(terms, runs, run, scorers, base.noise_sigma, border=border)
+        terms = local_terms(terms, runs, guarded, scorers, base.noise_sigma, border=border)
     if observations or terms.alpha_scale is not None:
         if observations and other.observation is not None:
             observations = _weighed(observations, image, other.observation, border, progress)
@@ -346,7 +350,7 @@ def _alpha_choice_solve(
             weights,
             observations,
             progress,
-            rejected if terms.alpha > PAPER_ALPHA else None,
+            rejected if terms.alpha > rejected_from else None,
         )
     return terms, result, unexplained
 
