@@ -78,12 +78,12 @@ def held_out(d: dict, *, keep: str = "0.9") -> int:
     auto = float(d["alphas"][len(GRID)])
     indices = [len(GRID)] + [GRID.index(a) for a in candidates("held-out", auto)[1:]]
     at_auto = np.interp(np.log10(auto), np.log10(GRID), costs)
-    errors = []
+    errors, alphas = [], []
     for i in indices:
         errors.append(at_auto if i == len(GRID) else costs[i])
-        if searched("held-out", errors):
+        alphas.append(auto if i == len(GRID) else GRID[i])
+        if searched("held-out", errors, alphas):
             break
-    alphas = [auto if i == len(GRID) else GRID[i] for i in indices[: len(errors)]]
     return indices[choose(errors, "held-out", alphas)]
 
 

@@ -183,10 +183,11 @@ def replay_default(record: dict) -> float:
 
     alphas, floor, own = record["alphas"], record["alphas"][0], record["own"]
     order = [0] + [k for k, a in enumerate(alphas) if a > floor]
-    errors = []
+    errors, tried = [], []
     for k in order:
         errors.append(record["score"][k])
-        if searched("held-out", errors):
+        tried.append(alphas[k])
+        if searched("held-out", errors, tried):
             break
     solved = order[: len(errors)]
     kept = undominated([alphas[k] for k in solved], [own[k] for k in solved])

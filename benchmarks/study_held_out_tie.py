@@ -121,15 +121,15 @@ def replay(record: dict, tie: float, less_noise: bool = False) -> int:
     the share is of the least error less the noise's part."""
     from stereodeblur.pipeline import alpha
 
-    errors = []
-    for _, error, _ in record["curve"]:
+    errors, alphas = [], []
+    for candidate, error, _ in record["curve"]:
         errors.append(error)
-        if alpha.searched("held-out", errors):
+        alphas.append(candidate)
+        if alpha.searched("held-out", errors, alphas):
             break
     noise = min(noise_part(record), min(errors)) if less_noise else 0.0
     saved, alpha.HELD_OUT_TIE = alpha.HELD_OUT_TIE, tie
     try:
-        alphas = [a for a, _, _ in record["curve"]]
         return alpha.choose([e - noise for e in errors], "held-out", alphas)
     finally:
         alpha.HELD_OUT_TIE = saved

@@ -343,6 +343,19 @@ def test_the_studied_rules_read_their_records(curves):
     assert curves.discrepancy(record) == 1e-5
 
 
+def test_the_replayed_default_stops_its_search_a_decade_above_the_best(curves):
+    record = {  # the floor 5e-5, then the grid above it, then the grid below it
+        "alphas": [5e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-5, 3e-5],
+        "score": [3.0, 2.0, 2.1, 2.5, 1.0, 0.5, 0.5],  # 3e-3 is never solved
+        "own": [1.0, 2.0, 3.0, 4.0, 5.0, 0.5, 0.7],  # none dominated
+        "errors": [[1.0]] * 7,
+        "gate": None,
+    }
+    assert curves.replay_default(record) == 1e-4
+    record["score"][3] = 2.1  # within the stop: 3e-3 is solved and predicts best
+    assert curves.replay_default(record) == 3e-3
+
+
 def test_the_model_error_study_samples_and_counts_as_stated(model_error):
     rng = np.random.default_rng(0)
     plane = rng.random((20, 30))
