@@ -55,3 +55,31 @@ def test_is_stored_tells_a_motion_of_other_settings_from_a_current_one(scene, tm
     assert is_stored(tmp_path, "sceneflow", settings)
     assert not is_stored(tmp_path, "sceneflow", other)  # what the benchmark scripts refuse
     assert not is_stored(tmp_path, "gt", settings)  # never stored
+
+
+def test_a_motion_stored_by_other_code_or_libraries_is_estimated_again(
+    scene, tmp_path, monkeypatch
+):
+    from stereodeblur.evaluation import motion_cache
+
+    settings = DeblurSettings()
+    for source in ("sceneflow", "initial-flow"):
+        cached_motion(scene, source, settings, tmp_path)
+        assert is_stored(tmp_path, source, settings)
+    monkeypatch.setattr(motion_cache, "estimator_fingerprint", lambda: "another")
+    for source in ("sceneflow", "initial-flow"):
+        assert not is_stored(tmp_path, source, settings)
+
+
+def test_the_estimators_fingerprint_follows_its_libraries(monkeypatch):
+    import numpy
+
+    from stereodeblur.evaluation import motion_cache
+
+    now = motion_cache.estimator_fingerprint()
+    motion_cache.estimator_fingerprint.cache_clear()
+    monkeypatch.setattr(numpy, "__version__", "0.0")
+    try:
+        assert motion_cache.estimator_fingerprint() != now
+    finally:
+        motion_cache.estimator_fingerprint.cache_clear()
