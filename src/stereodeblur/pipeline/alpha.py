@@ -17,11 +17,11 @@ within :data:`~stereodeblur.settings.HELD_OUT_TIE` of the best (a flat error cur
 tell them apart) the alpha nearest the paper's. It solves them from the smallest up and stops
 once an error is more than :data:`~stereodeblur.settings.HELD_OUT_STOP` above the least, a
 decade (:data:`~stereodeblur.settings.HELD_OUT_SPAN`) or more above the least's alpha. An
-estimated motion that the range guard rejects over the whole view at the floor or at the
-paper's alpha is rejected at every larger candidate too, where a strong prior can hide the
-failure (the pipeline's ``_alpha_choice_solve``; stop 57: the striped, noiseless test scene
-family_1050, whose scene flow is rejected at its floor 2e-5, came out 2.3 dB below its
-blurred frame at 3e-3). ``'cross-view'`` takes
+estimated motion that the range guard rejects over the whole view at a candidate up to the
+paper's alpha (the floor first) is rejected at every larger candidate too, where a strong prior
+can hide the failure (the pipeline's ``_alpha_choice_solve``; stop 57: the striped, noiseless
+test scene family_1050, whose scene flow is rejected at its floor 2e-5, came out 2.3 dB below
+its blurred frame at 3e-3). ``'cross-view'`` takes
 :data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
 whole grid (``benchmarks/study_alpha_choice.py``).
 

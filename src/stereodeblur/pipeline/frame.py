@@ -263,10 +263,10 @@ def _alpha_choice_solve(
     the chosen estimate predicts them (:func:`~.observations.weighed_neighbours`). Every
     solution is range-guarded (:func:`~.deconvolve.guarded_solve`) before it is scored, so
     that the choice judges what the view's result would be; with an estimated motion the
-    guard's verdict at the paper's alpha (solved for it if the floor is above) holds for every
-    larger candidate where it took the whole view. ``base``: the data terms at
-    :func:`_choice_settings`, if already computed. Returns the data terms, the result and
-    the region the guard deblurred with no motion (or None)."""
+    guard's first verdict that takes the whole view, at a candidate up to the paper's alpha
+    (solved for it if the floor is above), holds for every larger candidate. ``base``: the data
+    terms at :func:`_choice_settings`, if already computed. Returns the data terms, the result
+    and the region the guard deblurred with no motion (or None)."""
     rule = settings.alpha
     fixed = _choice_settings(settings)
     if base is None:
@@ -290,8 +290,8 @@ def _alpha_choice_solve(
 
     observed = true_motion_choice(settings) and other.observation is not None
     floor = alpha_from_sigma(base.noise_sigma) if observed else base.alpha
-    # An estimated motion the guard rejects over the whole view at the floor or at the
-    # paper's alpha is rejected at every larger alpha, where the prior can hide its failure.
+    # An estimated motion the guard rejects over the whole view at a candidate up to the
+    # paper's alpha is rejected at every larger one, where the prior can hide its failure.
     judged = settings.range_guard and not observed
     rejected = _whole_view(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
     rejected_from = PAPER_ALPHA
