@@ -273,15 +273,18 @@ def _alpha_choice_solve(
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
 
-    solved = {}
+    # An estimated motion the guard rejects over the whole view at a candidate up to the
+    # paper's alpha is rejected at every larger one, where the prior can hide its failure.
+    solved, rejected, rejected_from = {}, None, PAPER_ALPHA
 
-    def run(alpha, rejected=None) -> _Candidate:
-        key = (alpha, rejected is not None)
+    def run(alpha) -> _Candidate:
+        region = rejected if alpha > rejected_from else None
+        key = (alpha, region is not None)
         if key not in solved:
             report(progress, f"alpha {alpha:g}")
             terms = replace(base, alpha=alpha, update=copy.deepcopy(base.update))
             result, unexplained = guarded_solve(
-                blurred, operator, terms, fixed, weights, (), progress, rejected
+                blurred, operator, terms, fixed, weights, (), progress, region
             )
             image = np.clip(result.image, 0.0, 1.0)
             own = own_error(image, operator.operator, blurred, border=border)
@@ -290,11 +293,9 @@ def _alpha_choice_solve(
 
     observed = true_motion_choice(settings) and other.observation is not None
     floor = alpha_from_sigma(base.noise_sigma) if observed else base.alpha
-    # An estimated motion the guard rejects over the whole view at a candidate up to the
-    # paper's alpha is rejected at every larger one, where the prior can hide its failure.
     judged = settings.range_guard and not observed
-    rejected = _whole_view(run(PAPER_ALPHA).unexplained) if judged and floor > PAPER_ALPHA else None
-    rejected_from = PAPER_ALPHA
+    if judged and floor > PAPER_ALPHA:
+        rejected = _whole_view(run(PAPER_ALPHA).unexplained)
 
     held = [o.observation for o in observations if o.name in NEIGHBOURS]
     if held and other.observation is not None:
@@ -307,12 +308,9 @@ def _alpha_choice_solve(
             return held_out_error(image, held, border=border)
         return prediction_error(image, other, border=border)
 
-    def guarded(alpha) -> _Candidate:
-        return run(alpha, rejected if alpha > rejected_from else None)
-
     runs, errors, alphas = [], [], []
     for alpha in candidates(rule, floor):
-        runs.append(guarded(alpha))
+        runs.append(run(alpha))
         if judged and alpha <= PAPER_ALPHA and rejected is None:
             rejected, rejected_from = _whole_view(runs[-1].unexplained), alpha
         errors.append(score(runs[-1].image))
@@ -334,7 +332,7 @@ def _alpha_choice_solve(
     terms, result, unexplained, image, _ = chosen
     scorers = [other.observation] if observed else held if len(held) > 1 else []
     if local_alpha_here(settings, base.noise_sigma) and scorers:
-        terms = local_terms(terms, runs, guarded, scorers, base.noise_sigma, border=border)
+        terms = local_terms(terms, runs, run, scorers, base.noise_sigma, border=border)
     if observations or terms.alpha_scale is not None:
         if observations and other.observation is not None:
             observations = _weighed(observations, image, other.observation, border, progress)
