@@ -54,17 +54,14 @@ def curves(task) -> tuple[str, dict]:
     return root.name, {s: source_record(scene, s, truth, border, cache) for s in protocol.MOTIONS}
 
 
-def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
-    """One scene's and motion source's record (see the module's docstring)."""
+def opened_pipeline(out: dict, views: dict, current: dict, truth, border: int) -> dict:
+    """The functions of :mod:`stereodeblur.pipeline.frame` that :func:`source_record` replaces
+    to open up the alpha choice, by name: each records into ``out`` (the left view's candidates)
+    and ``views`` (per view: its own operator and blurred frame, the other view, its candidates'
+    images) while ``current["view"]``'s choice is made."""
     import stereodeblur.pipeline.alpha as rules
     import stereodeblur.pipeline.frame as frame
     from stereodeblur.evaluation.metrics import psnr
-    from stereodeblur.evaluation.motion_cache import cached_motion
-    from stereodeblur.pipeline import deblur_stereo_frame
-
-    out = {"alphas": [], "score": [], "errors": [], "psnr": [], "own": [], "gate": None}
-    views = {}  # per view: its own operator and blurred frame, the other view, its candidates
-    current = {"view": None}  # the view whose choice is being made
 
     def kept(image, errors):
         view = views[current["view"]]
@@ -112,7 +109,7 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
         }
         return solve(scene, window, view, blurred, operator, settings, other, *args)
 
-    patches = {
+    return {
         "_alpha_choice_solve": opened,
         "held_out_error": held_out_error,
         "observed_error": observed_error,
@@ -120,9 +117,23 @@ def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
         "choose": choose,
         "below_floor": below_floor,
         "candidates": candidates,
-        "searched": lambda rule, errors: False,
+        "searched": lambda rule, errors, alphas: False,
         "undominated": lambda alphas, own: list(range(len(alphas))),
     }
+
+
+def source_record(scene, source: str, truth, border: int, cache: Path) -> dict:
+    """One scene's and motion source's record (see the module's docstring)."""
+    import stereodeblur.pipeline.alpha as rules
+    import stereodeblur.pipeline.frame as frame
+    from stereodeblur.evaluation.metrics import psnr
+    from stereodeblur.evaluation.motion_cache import cached_motion
+    from stereodeblur.pipeline import deblur_stereo_frame
+
+    out = {"alphas": [], "score": [], "errors": [], "psnr": [], "own": [], "gate": None}
+    views = {}  # per view: its own operator and blurred frame, the other view, its candidates
+    current = {"view": None}  # the view whose choice is being made
+    patches = opened_pipeline(out, views, current, truth, border)
     saved = {name: getattr(frame, name) for name in patches}
     settings = protocol.Column("default", source).settings()
     motion, _, _ = cached_motion(scene, source, protocol.unmoved(source), cache)

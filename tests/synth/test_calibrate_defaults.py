@@ -356,6 +356,20 @@ def test_the_replayed_default_stops_its_search_a_decade_above_the_best(curves):
     assert curves.replay_default(record) == 3e-3
 
 
+def test_the_curve_study_replaces_the_pipeline_functions_call_for_call(curves):
+    """Every function the curve study puts in place of the pipeline's takes the arguments the
+    pipeline passes to the original (a changed signature made the study fail, stop 57)."""
+    import inspect
+
+    import stereodeblur.pipeline.frame as frame
+
+    for name, patch in curves.opened_pipeline({}, {}, {"view": None}, None, 0).items():
+        parameters = inspect.signature(getattr(frame, name)).parameters.values()
+        positional = [p.name for p in parameters if p.kind != p.KEYWORD_ONLY]
+        keywords = {p.name: p.name for p in parameters if p.kind == p.KEYWORD_ONLY}
+        inspect.signature(patch).bind(*positional, **keywords)  # raises TypeError if not
+
+
 def test_the_model_error_study_samples_and_counts_as_stated(model_error):
     rng = np.random.default_rng(0)
     plane = rng.random((20, 30))
