@@ -424,19 +424,27 @@ def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path)
 
 def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seconds: dict) -> dict:
     """:func:`run_column`'s result for ``column`` on ``scene`` (``truth``: its sharp frame 1),
-    from ``cache`` when its settings match, else computed (the motion by :func:`motion_for`)
+    from ``cache`` when its settings and its motion (:func:`motion_for`) match, else computed
     and cached."""
-    signature = _signature(column.settings())
+    motion = motion_for(scene, column, motions, seconds, cache)
+    signature = _signature(column.settings()) + motion_tag(motion)
     path = _column_path(cache, column)
     data = _stored(path, column.motion_source, signature)
     if data is None:
-        motion = motion_for(scene, column, motions, seconds, cache)
         data = run_column(scene, column, motion, truth) | {"signature": signature}
         _archive(path)
         atomic_write_text(path, json.dumps(data, indent=1))
         name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
         _log(f"{name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
     return data
+
+
+def motion_tag(motion) -> str:
+    """The part of a cached result's signature that names its motion
+    (:func:`~stereodeblur.evaluation.motion_cache.motion_digest`)."""
+    from stereodeblur.evaluation.motion_cache import motion_digest
+
+    return f" motion {motion_digest(motion)}"
 
 
 def _column_path(cache: Path, column: Column) -> Path:
@@ -476,13 +484,11 @@ def run_scene(task) -> dict:
     features = {}
     for source in motions:
         path = cache / f"{source}_features.json"
-        signature = _signature(unmoved(source), rules=False)
+        motion = motion_for(scene, Column("default", source), motion_cache, motion_seconds, cache)
+        signature = _signature(unmoved(source), rules=False) + motion_tag(motion)
         signature += FEATURES_VERSION
         data = _cached(path, signature)
         if data is None:
-            motion = motion_for(
-                scene, Column("default", source), motion_cache, motion_seconds, cache
-            )
             data = frame_features(scene, motion, source, blurred)
             data["signature"] = signature
             atomic_write_text(path, json.dumps(data, indent=1))
@@ -836,11 +842,16 @@ def nearest_alpha(alpha: float) -> int:
 
 def cached_columns(work: Path, name: str, columns) -> list[dict] | None:
     """The cached results of ``columns`` on scene ``name`` under ``work`` (as
-    :func:`cached_column` stores them), None if one is missing: a study's reading."""
-    out = []
+    :func:`cached_column` stores them, with the motion it would take now), None if one is
+    missing: a study's reading."""
+    from stereodeblur.io.scene import open_scene
+
+    scene = open_scene(work / "scenes" / name)
+    cache, motions, out = work / "results" / name, {}, []
     for column in columns:
-        path = _column_path(work / "results" / name, column)
-        data = _stored(path, column.motion_source, _signature(column.settings()))
+        motion = motion_for(scene, column, motions, {}, cache)
+        signature = _signature(column.settings()) + motion_tag(motion)
+        data = _stored(_column_path(cache, column), column.motion_source, signature)
         if data is None:
             return None
         out.append(data)

@@ -5,7 +5,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from stereodeblur.evaluation.motion_cache import cached_motion, is_stored, motion_signature
+from stereodeblur.evaluation.motion_cache import (
+    cached_motion,
+    is_stored,
+    motion_digest,
+    motion_signature,
+)
 from stereodeblur.io.scene import open_scene
 from stereodeblur.settings import DeblurSettings
 from stereodeblur.synth.objects import make_object_scene
@@ -83,3 +88,18 @@ def test_the_estimators_fingerprint_follows_its_libraries(monkeypatch):
         assert motion_cache.estimator_fingerprint() != now
     finally:
         motion_cache.estimator_fingerprint.cache_clear()
+
+
+def test_a_motion_digest_survives_storage_and_follows_the_motion(scene, tmp_path):
+    for source in ("sceneflow", "initial-flow"):
+        made, seconds, _ = cached_motion(scene, source, DeblurSettings(), tmp_path)
+        read, again, _ = cached_motion(scene, source, DeblurSettings(), tmp_path)
+        assert seconds > 0 and again == 0.0
+        assert motion_digest(read) == motion_digest(made)
+    sf = cached_motion(scene, "sceneflow", DeblurSettings(), tmp_path)[0]
+    twists = sf.sceneflow.twists.copy()
+    twists[0, 0] += 1e-9
+    moved = replace(sf, sceneflow=replace(sf.sceneflow, twists=twists))
+    assert motion_digest(moved) != motion_digest(sf)
+    flows = replace(made, flow_forward=made.flow_forward + 1e-3)
+    assert motion_digest(flows) != motion_digest(made)

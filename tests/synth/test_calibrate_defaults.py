@@ -282,14 +282,30 @@ def test_a_study_keeps_its_scenes_and_computes_each_once(runner, tmp_path, monke
         runner.run_study("probe", entry, report, 5, "a probe", [*common, "--skip", "3"])
 
 
-def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path):
+def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path, monkeypatch):
+    """A study reads a cached column only if it was made with the motion the calibration would
+    take now (stop 58: results of a motion estimated again were read as the new motion's)."""
+    from stereodeblur.io import scene as scene_io
+
     assert [runner.nearest_alpha(a) for a in (2e-5, 1e-3, 5e-3, 1e-6)] == [1, 4, 5, 0]
-    column = runner.Column(runner.alpha_key(1e-4), "gt", {"alpha": 1e-4})
+    flows = {"now": np.zeros((4, 6, 2), np.float32)}
+    monkeypatch.setattr(scene_io, "open_scene", lambda root: root)
+    monkeypatch.setattr(
+        runner,
+        "motion_for",
+        lambda *args: SimpleNamespace(
+            sceneflow=None, flow_forward=flows["now"], flow_backward=None
+        ),
+    )
+    column = runner.Column(runner.alpha_key(1e-4), "initial-flow", {"alpha": 1e-4})
     assert runner.cached_columns(tmp_path, "family_0000", [column]) is None
-    path = tmp_path / "results" / "family_0000" / f"gt_{column.key}.json"
+    path = tmp_path / "results" / "family_0000" / f"initial-flow_{column.key}.json"
     path.parent.mkdir(parents=True)
-    path.write_text(json.dumps({"psnr": 30.0, "signature": runner._signature(column.settings())}))
+    stored = runner._signature(column.settings()) + runner.motion_tag(runner.motion_for())
+    path.write_text(json.dumps({"psnr": 30.0, "signature": stored}))
     assert runner.cached_columns(tmp_path, "family_0000", [column])[0]["psnr"] == 30.0
+    flows["now"] = np.ones((4, 6, 2), np.float32)  # the motion estimated again, otherwise
+    assert runner.cached_columns(tmp_path, "family_0000", [column]) is None
 
 
 def _study(name: str):

@@ -118,6 +118,29 @@ def cached_motion(scene, source: str, settings, cache: Path):
     return motion, seconds, messages
 
 
+def motion_digest(motion) -> str:
+    """Hash of what a deblurring takes from ``motion`` (a
+    :class:`~stereodeblur.pipeline.FrameMotion`): its scene flow's segments, planes, motions and
+    occlusion, else its flows. A result cached with one motion is not reused with another (stop
+    58: a motion estimated again by other code left the results of the old one in the cache)."""
+    digest = hashlib.sha256()
+    sf = motion.sceneflow
+    if sf is not None:
+        arrays = (
+            sf.labels.astype(np.int32),
+            sf.normals.astype(np.float64),
+            sf.twists.astype(np.float64),
+            sf.occlusion.astype(np.uint8),
+        )
+    else:
+        flows = (motion.flow_forward, motion.flow_backward)
+        arrays = tuple(np.asarray(f, np.float32) for f in flows if f is not None)
+    for array in arrays:
+        digest.update(str(array.shape).encode())
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()[:16]
+
+
 def is_stored(cache: Path, source: str, settings) -> bool:
     """Whether ``cache`` holds a motion of ``source`` made with ``settings``
     (:func:`motion_signature`), which :func:`cached_motion` reads back."""

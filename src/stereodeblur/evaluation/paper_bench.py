@@ -37,7 +37,7 @@ import numpy as np
 from ..errors import InputError
 from ..progress import ProgressCallback, report
 from ..settings import DeblurSettings
-from .motion_cache import cached_motion, quiet
+from .motion_cache import cached_motion, motion_digest, quiet
 from .paper_columns import (
     ALPHA_SWEEP,
     COLUMNS,
@@ -226,7 +226,7 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
             ade=float(ade),
             alpha=float(result.alpha),
             seconds=seconds,
-            signature=_signature(column, base_settings),
+            signature=_signature(column, base_settings, motion),
             mixed_mse=masked_mse(image, sharp, truth["mixed"] > 0, border=border),
             **stats,
         ),
@@ -234,8 +234,9 @@ def run_column(scene, column: Column, base_settings: DeblurSettings, motion, tru
     )
 
 
-def _signature(column: Column, settings) -> dict:
-    """What a cached result depends on (``observations`` only when not ``'single'``,
+def _signature(column: Column, settings, motion) -> dict:
+    """What a cached result depends on: its ``motion`` (:func:`~.motion_cache.motion_digest`)
+    and its settings (``observations`` only when not ``'single'``,
     ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
     ``boundary_flow`` only when off, ``relabel_radius`` and ``local_alpha`` only where they
     act, so results from before those options stay valid; the versions of the alpha rules
@@ -273,7 +274,7 @@ def _signature(column: Column, settings) -> dict:
         fields["gt_fit"] = FIT_VERSION
     if (neighbours := neighbours_version(own)) is not None:
         fields["neighbours"] = neighbours
-    return {**fields, "frame": FRAME}
+    return {**fields, "frame": FRAME, "motion": motion_digest(motion)}
 
 
 def _read_cached(path: Path) -> dict | None:
@@ -318,8 +319,18 @@ def evaluate_scene(
     messages: list[str] = []
     sceneflow_seconds = math.nan
     for column in columns:
+        if column.motion_source not in motions:
+            report(progress, f"{name}: motion ({column.motion_source})")
+            motion, seconds, caught = cached_motion(
+                scene, column.motion_source, base_settings, cache
+            )
+            motions[column.motion_source] = motion
+            messages += caught
+            if column.motion_source == "sceneflow" and seconds:
+                sceneflow_seconds = seconds
+        motion = motions[column.motion_source]
         json_path = cache / f"{column.key}.json"
-        signature = _signature(column, base_settings)
+        signature = _signature(column, base_settings, motion)
         cached = _read_cached(json_path)
         if cached is not None and cached.get("signature") == json.loads(json.dumps(signature)):
             if "mixed_mse" not in cached:  # cached before it was measured: from the image
@@ -330,17 +341,7 @@ def evaluate_scene(
                 atomic_write_text(json_path, json.dumps(cached, indent=1))
             results[column.key] = ColumnResult(**cached)
             continue
-        if column.motion_source not in motions:
-            report(progress, f"{name}: motion ({column.motion_source})")
-            motion, seconds, caught = cached_motion(
-                scene, column.motion_source, base_settings, cache
-            )
-            motions[column.motion_source] = motion
-            messages += caught
-            if column.motion_source == "sceneflow" and seconds:
-                sceneflow_seconds = seconds
         report(progress, f"{name}: {column.key}")
-        motion = motions[column.motion_source]
         result, image = run_column(scene, column, base_settings, motion, truth)
         cache.mkdir(parents=True, exist_ok=True)
         write_png(cache / f"{column.key}.png", np.clip(image, 0, 1), bit_depth=16)
