@@ -103,6 +103,7 @@ CANDIDATES = {
     "no-relabel": {"relabel_radius": 0},
     "relabel-occlusion": {"boundary_flow": False},
     "census-0.004": {"sceneflow": SceneFlowSettings(census_threshold=0.004)},
+    "dominant-leave": {"sceneflow": SceneFlowSettings(dominant_leave_window=16.0)},
     "local-alpha": {"local_alpha": "always"},
     "no-local-alpha": {"local_alpha": "off"},
 }
@@ -231,8 +232,8 @@ def _log(message: str) -> None:
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    ``local_alpha`` only where it acts,
-    ``boundary_flow`` only when off, ``relabel_radius`` only where it acts, so results from
+    ``local_alpha`` only where it acts, ``boundary_flow`` only when off, the scene flow's
+    ``dominant_leave_*`` only when on, ``relabel_radius`` only where it acts, so results from
     before those options stay valid), the relabelling rule's version where it acts, for the
     rules that predict the other view their version (unless not ``rules``: what does not
     depend on the alpha), for the true motion the version of its fit and the version of the
@@ -240,6 +241,7 @@ def _signature(settings, *, rules: bool = True) -> str:
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
+    text = text.replace(", dominant_leave_window=0.0, dominant_leave_reach=1.0", "")
     if not local_alpha_acts(settings):
         text = text.replace(f", local_alpha={settings.local_alpha!r}", "")
     if relabel_rule(settings) is None:

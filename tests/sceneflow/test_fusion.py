@@ -119,3 +119,58 @@ def test_leaving_the_view_is_free_in_a_clean_flat_region():
     props = ProposalSet(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 2.0]]), R, T)
     D = data_costs(camera, codes, samples, bounds, factor, np.array([[0, 1]]), props)
     assert D[0, 0] == pytest.approx(0.0) and D[0, 1] == pytest.approx(0.0)
+
+
+def test_a_dominant_motion_leaves_the_view_at_the_near_cost_within_its_reach():
+    # The noisy scene above: the motion far to the side carries every pixel 45-100 px out.
+    from stereodeblur.geometry import StereoCamera
+    from stereodeblur.sceneflow.census import census_transform, wrong_match_cost
+    from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+
+    shape = (40, 56)
+    rng = np.random.default_rng(3)
+    codes = tuple(
+        census_transform(np.clip(0.3 + 0.02 * rng.standard_normal(shape), 0, 1)) for _ in range(4)
+    )
+    camera = StereoCamera([[50.0, 0, 27.5], [0, 50.0, 19.5], [0, 0, 1]], 0.1)
+    graph = _one_segment_graph(shape)
+    samples = sample_pixels(graph, 1)
+    R = np.tile(np.eye(3), (2, 1, 1))
+    T = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    props = ProposalSet(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 2.0]]), R, T)
+    candidates = np.array([[0, 1]])
+    today = data_costs(camera, codes, *samples, candidates, props)
+    near = np.full(shape, 0.05)
+
+    def costs(dominant, reach):
+        flags = np.array(dominant)
+        return data_costs(
+            camera, codes, *samples, candidates, props, dominant=flags, leave_near=near, reach=reach
+        )
+
+    np.testing.assert_array_equal(costs([False, False], 200.0), today)
+    np.testing.assert_array_equal(costs([False, True], 40.0), today)  # all beyond its reach
+    stay, leave = costs([True, True], 200.0)[0]
+    assert stay <= today[0, 0]  # only its samples at the left edge leave the right view
+    # Both views at t + 1 of every sample: the near cost instead of a wrong match's.
+    assert leave == pytest.approx(today[0, 1] - 2 * (wrong_match_cost(codes[0]) - 0.05).sum())
+    assert leave < 0.5 * today[0, 1]
+
+
+def test_the_cost_of_leaving_near_is_the_local_mean_of_the_initial_matches():
+    from stereodeblur.sceneflow.census import census_transform, wrong_match_cost
+    from stereodeblur.sceneflow.fusion import leave_costs_near
+
+    rng = np.random.default_rng(0)
+    image = rng.random((30, 40))
+    lt, lt1 = census_transform(image), census_transform(np.roll(image, 2, axis=1))
+    y, x = (a.ravel() for a in np.mgrid[0:30, 0:40])
+    x1, y1 = (x + 2).astype(float), y.astype(float)  # the true shift: perfect matches
+    near = leave_costs_near(lt, lt1, x, y, x1, y1, 4.0)
+    assert near.shape == (30, 40)
+    assert np.all(near <= wrong_match_cost(lt) + 1e-12)
+    assert near[5:25, 5:30].max() < 0.05 < wrong_match_cost(lt)[5:25, 5:30].min()
+    x1[:] = np.nan  # no initial match anywhere: a wrong match's cost
+    np.testing.assert_array_equal(
+        leave_costs_near(lt, lt1, x, y, x1, y1, 4.0), wrong_match_cost(lt)
+    )

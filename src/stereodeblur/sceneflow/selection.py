@@ -17,7 +17,14 @@ from scipy.sparse.csgraph import connected_components
 
 from ..geometry.camera import StereoCamera
 from .candidates import FitPixels, SegmentProposals, candidate_table
-from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
+from .fusion import (
+    ProposalSet,
+    alpha_expansion,
+    data_costs,
+    leave_costs_near,
+    pairwise_tables,
+    sample_pixels,
+)
 from .motions import fit_motions
 from .planes import fit_planes
 from .settings import SceneFlowSettings
@@ -54,9 +61,18 @@ def select_proposals(
     """
     samples = sample_pixels(graph, pixels.step)
     weights = edge_weights(graph, gray, settings)
+    leaving = _dominant_leaving(codes, pixels, settings)
 
-    def fuse(cands, props, init, seed_offset):
-        D = data_costs(camera, codes, *samples, cands, props, outside_cost=settings.outside_cost)
+    def fuse(cands, props, init, seed_offset, dominant_ids):
+        if leaving is not None:
+            dominant = np.zeros(len(props), dtype=np.bool_)
+            dominant[dominant_ids] = True
+            extra = {"dominant": dominant, "leave_near": leaving[0], "reach": leaving[1]}
+        else:
+            extra = {}
+        D = data_costs(
+            camera, codes, *samples, cands, props, outside_cost=settings.outside_cost, **extra
+        )
         V = pairwise_tables(
             camera,
             graph,
@@ -73,7 +89,7 @@ def select_proposals(
 
     L = graph.num_segments
     props = start.proposals
-    chosen = fuse(start.candidates, props, np.zeros(L, dtype=np.int64), 0)
+    chosen = fuse(start.candidates, props, np.zeros(L, dtype=np.int64), 0, start.global_ids)
     if after_round is not None:
         after_round(0)
     for round_index in range(settings.num_region_rounds):
@@ -82,9 +98,11 @@ def select_proposals(
         )
         offset = len(props)
         props = props.concat(region_props)
-        candidates = _region_candidates(graph, start, chosen, region, offset, settings)
+        big = _largest_regions(graph, region, settings)
+        candidates = _region_candidates(graph, start, chosen, region, offset, offset + big)
         init = np.argmax(candidates == chosen[:, None], axis=1)
-        chosen = fuse(candidates, props, init, 1 + round_index)
+        dominant_ids = np.concatenate([offset + big, start.global_ids])
+        chosen = fuse(candidates, props, init, 1 + round_index, dominant_ids)
         if after_round is not None:
             after_round(1 + round_index)
     return Selection(props, chosen)
@@ -156,14 +174,34 @@ def _region_proposals(camera, graph, pixels, props, chosen, settings, rng):
     return ProposalSet(rabc, Rr, Tr), region
 
 
-def _region_candidates(graph, start, chosen, region, offset, settings):
-    """Each segment's candidates in a region round: its choice, its own and its
-    neighbours' regions, its own two proposals, the largest regions and the global ones."""
+def _largest_regions(graph, region, settings) -> np.ndarray:
+    """The regions offered to every segment: the ``max_regions`` largest of at least
+    ``min_region_fraction`` of the image."""
     height, width = graph.labels.shape
     num_regions = int(region.max()) + 1
     area = np.bincount(region, graph.sizes, num_regions)
     big = np.argsort(-area)[: settings.max_regions]
-    big = offset + big[area[big] >= settings.min_region_fraction * height * width]
+    return big[area[big] >= settings.min_region_fraction * height * width]
+
+
+def _dominant_leaving(codes, pixels: FitPixels, settings: SceneFlowSettings):
+    """``(leave_near, reach)`` for :func:`~.fusion.data_costs` (the dominant motions' cost of
+    leaving the view and how far), None if ``settings.dominant_leave_window`` is 0."""
+    if settings.dominant_leave_window <= 0:
+        return None
+    lt, _, lt1, _ = codes
+    p = pixels
+    near = leave_costs_near(lt, lt1, p.ix, p.iy, p.x1, p.y1, settings.dominant_leave_window)
+    length = np.hypot(p.x1 - p.x, p.y1 - p.y)
+    length = length[np.isfinite(length)]
+    reach = settings.dominant_leave_reach * (np.percentile(length, 95) if length.size else 0.0)
+    return near, float(reach)
+
+
+def _region_candidates(graph, start, chosen, region, offset, big):
+    """Each segment's candidates in a region round: its choice, its own and its
+    neighbours' regions (``offset`` plus the region), its own two proposals, the largest
+    regions ``big`` (proposal indices) and the global ones."""
     lists = []
     for s in range(graph.num_segments):
         near = np.concatenate([[s], start.neighbours[s]])

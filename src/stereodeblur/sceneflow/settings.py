@@ -52,6 +52,7 @@ _POSITIVE = (
     "global_motion_threshold",
     "edge_contrast",
     "refine_scale",
+    "dominant_leave_reach",
 )
 
 
@@ -121,6 +122,15 @@ class SceneFlowSettings:
     # Measured (stop 40, the same table): 0.1 moves the mean by 0.006 px (it only prices
     # points behind a camera; a sample that leaves the view costs what a wrong match would).
     outside_cost: float = 0.4
+    # Stop 58 (README, "A static scene's motion at the image border"): where a sample leaves the
+    # view at t + 1, a wrong match's cost made the camera's own motion lose the border of a
+    # static, finely striped scene to an aliased motion that stays in view (family_1059, 17 %
+    # of the frame 60-78 px off). With a window > 0 the dominant motions (global proposals and
+    # the largest regions') leave the view at the local mean cost of the initial flow's matches
+    # at t + 1 (a Gaussian window of this many px; 0: today's cost), if they leave it by at most
+    # dominant_leave_reach times the 95th percentile of the initial flow's length.
+    dominant_leave_window: float = 0.0
+    dominant_leave_reach: float = 1.0
     # Measured (stop 40, the same table): edge_floor 0.5 and 1 win on 2 / 4 and lose on 1 / 5
     # scenes; kept. edge_contrast not tuned. Smoothness across a contrast edge falls to
     # edge_floor; edge_contrast is the mean grey difference (of [0, 1]) that counts as an edge.
