@@ -49,6 +49,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import sys
 import tempfile
 import time
@@ -232,16 +233,17 @@ def _log(message: str) -> None:
 def _signature(settings, *, rules: bool = True) -> str:
     """What a cached column depends on: the settings (``observations`` only when not
     ``'single'``, ``interpolation`` only when not ``'bilinear'``, ``range_guard`` only when on,
-    ``local_alpha`` only where it acts, ``boundary_flow`` only when off, the scene flow's
-    ``dominant_leave_*`` only when on, ``relabel_radius`` only where it acts, so results from
-    before those options stay valid), the relabelling rule's version where it acts, for the
-    rules that predict the other view their version (unless not ``rules``: what does not
-    depend on the alpha), for the true motion the version of its fit and the version of the
-    neighbouring frames' data terms where they are observed."""
+    ``local_alpha`` only where it acts, ``boundary_flow`` only when off, ``relabel_radius`` only
+    where it acts, so results from before those options stay valid; not the scene flow's
+    settings, which act through the motion that :func:`motion_tag` names), the relabelling
+    rule's version where it acts, for the rules that predict the other view their version
+    (unless not ``rules``: what does not depend on the alpha), for the true motion the version
+    of its fit and the version of the neighbouring frames' data terms where they are
+    observed."""
     text = repr(settings).replace(", observations='single'", "")
     text = text.replace(", interpolation='bilinear'", "").replace(", range_guard=False", "")
     text = text.replace(", boundary_flow=True", "")
-    text = text.replace(", dominant_leave_window=0.0, dominant_leave_reach=1.0", "")
+    text = re.sub(r", sceneflow=SceneFlowSettings\([^)]*\)", "", text)
     if not local_alpha_acts(settings):
         text = text.replace(f", local_alpha={settings.local_alpha!r}", "")
     if relabel_rule(settings) is None:

@@ -308,6 +308,17 @@ def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path, mo
     assert runner.cached_columns(tmp_path, "family_0000", [column]) is None
 
 
+def test_a_columns_signature_names_its_motion_not_the_estimators_settings(runner):
+    from stereodeblur.sceneflow.settings import SceneFlowSettings
+
+    default = runner.Column("default", "sceneflow")
+    other = runner.Column("other", "sceneflow", {"sceneflow": SceneFlowSettings(truncation=8.0)})
+    assert runner._signature(other.settings()) == runner._signature(default.settings())
+    assert "SceneFlowSettings" not in runner._signature(default.settings())
+    paper = runner.Column("paper", "sceneflow", {"alpha": 1e-3})
+    assert runner._signature(paper.settings()) != runner._signature(default.settings())
+
+
 def _study(name: str):
     """The benchmark study ``benchmarks/NAME.py`` as a module (``calibrate_defaults`` loaded)."""
     spec = importlib.util.spec_from_file_location(name, PATH.with_name(f"{name}.py"))
