@@ -119,8 +119,10 @@ counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`
 ``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
 ``no-relabel`` the estimate's own segment boundaries (the default until stop 34),
 ``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere and
-``local-alpha`` the prior weight varying over the view on every frame (stop 54) and
-``no-local-alpha`` one alpha per view (the default until stop 54);
+``local-alpha`` the prior weight varying over the view on every frame (stop 54),
+``no-local-alpha`` one alpha per view (the default until stop 54) and ``dominant-leave`` the
+scene flow's dominant motions leaving the view at a correct match's cost (stop 58, not
+adopted);
 all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
 they were measured."""
 
