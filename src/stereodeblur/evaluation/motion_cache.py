@@ -4,7 +4,8 @@
 in a cache folder and reads them back on later runs (``bench paper``,
 ``benchmarks/calibrate_defaults.py``), so that every column of a scene, in every run, uses
 one motion. Each stored motion has its :func:`motion_signature` beside it; a motion stored with
-other estimator settings (or none, before stop 41) is estimated again.
+other estimator settings (or none, before stop 41) is estimated again. A result cached from a
+motion names it by :func:`motion_digest`.
 """
 
 from __future__ import annotations
