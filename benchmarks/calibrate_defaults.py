@@ -432,8 +432,7 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
     """:func:`run_column`'s result for ``column`` on ``scene`` (``truth``: its sharp frame 1),
     from ``cache`` when its settings and its motion (:func:`motion_for`) match, else computed
     and cached."""
-    motion = motion_for(scene, column, motions, seconds, cache)
-    signature = _signature(column.settings()) + motion_tag(motion)
+    motion, signature = _column_signature(scene, column, motions, seconds, cache)
     path = _column_path(cache, column)
     data = _stored(path, column.motion_source, signature)
     if data is None:
@@ -443,6 +442,12 @@ def cached_column(scene, column: Column, truth, cache: Path, motions: dict, seco
         name = f"{Path(scene.root).name} {column.motion_source}/{column.key}"
         _log(f"{name}: {data['psnr']:.2f} dB ({data['seconds']:.1f} s)")
     return data
+
+
+def _column_signature(scene, column: Column, motions: dict, seconds: dict, cache: Path):
+    """``column``'s motion on ``scene`` (:func:`motion_for`) and its cached result's signature."""
+    motion = motion_for(scene, column, motions, seconds, cache)
+    return motion, _signature(column.settings()) + motion_tag(motion)
 
 
 def motion_tag(motion) -> str:
@@ -855,8 +860,7 @@ def cached_columns(work: Path, name: str, columns) -> list[dict] | None:
     scene = open_scene(work / "scenes" / name)
     cache, motions, out = work / "results" / name, {}, []
     for column in columns:
-        motion = motion_for(scene, column, motions, {}, cache)
-        signature = _signature(column.settings()) + motion_tag(motion)
+        _, signature = _column_signature(scene, column, motions, {}, cache)
         data = _stored(_column_path(cache, column), column.motion_source, signature)
         if data is None:
             return None

@@ -80,12 +80,13 @@ def _one_segment_graph(shape):
     return segment_graph(np.zeros(shape, dtype=np.int32))
 
 
-def test_leaving_the_view_is_not_cheaper_than_matching_noise():
-    # Flat grey plus independent noise in every view: every match costs as much as a
-    # wrong one, so a motion that carries all pixels out of the image must not win.
+def _noisy_static_and_far():
+    """Flat grey plus independent noise in every view (40 x 56), one segment, and two
+    proposals: static, and far to the side (every pixel carried 45-100 px out of the view).
+    Returns the camera, codes, graph, samples and proposals."""
     from stereodeblur.geometry import StereoCamera
     from stereodeblur.sceneflow.census import census_transform
-    from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+    from stereodeblur.sceneflow.fusion import ProposalSet, sample_pixels
 
     shape = (40, 56)
     rng = np.random.default_rng(3)
@@ -94,11 +95,19 @@ def test_leaving_the_view_is_not_cheaper_than_matching_noise():
     )
     camera = StereoCamera([[50.0, 0, 27.5], [0, 50.0, 19.5], [0, 0, 1]], 0.1)
     graph = _one_segment_graph(shape)
-    samples, bounds, factor = sample_pixels(graph, 1)
     R = np.tile(np.eye(3), (2, 1, 1))
-    T = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])  # static; far to the side
+    T = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
     props = ProposalSet(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 2.0]]), R, T)
-    D = data_costs(camera, codes, samples, bounds, factor, np.array([[0, 1]]), props)
+    return camera, codes, graph, sample_pixels(graph, 1), props
+
+
+def test_leaving_the_view_is_not_cheaper_than_matching_noise():
+    # Every match costs as much as a wrong one, so a motion that carries all pixels out of
+    # the image must not win.
+    from stereodeblur.sceneflow.fusion import data_costs
+
+    camera, codes, graph, samples, props = _noisy_static_and_far()
+    D = data_costs(camera, codes, *samples, np.array([[0, 1]]), props)
     stay, leave = D[0]
     assert stay > 0.3 * 3 * graph.sizes[0]  # noise: matches are poor
     assert leave >= 0.9 * stay
@@ -122,25 +131,13 @@ def test_leaving_the_view_is_free_in_a_clean_flat_region():
 
 
 def test_a_dominant_motion_leaves_the_view_at_the_near_cost_within_its_reach():
-    # The noisy scene above: the motion far to the side carries every pixel 45-100 px out.
-    from stereodeblur.geometry import StereoCamera
-    from stereodeblur.sceneflow.census import census_transform, wrong_match_cost
-    from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+    from stereodeblur.sceneflow.census import wrong_match_cost
+    from stereodeblur.sceneflow.fusion import data_costs
 
-    shape = (40, 56)
-    rng = np.random.default_rng(3)
-    codes = tuple(
-        census_transform(np.clip(0.3 + 0.02 * rng.standard_normal(shape), 0, 1)) for _ in range(4)
-    )
-    camera = StereoCamera([[50.0, 0, 27.5], [0, 50.0, 19.5], [0, 0, 1]], 0.1)
-    graph = _one_segment_graph(shape)
-    samples = sample_pixels(graph, 1)
-    R = np.tile(np.eye(3), (2, 1, 1))
-    T = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
-    props = ProposalSet(np.array([[0.0, 0.0, 2.0], [0.0, 0.0, 2.0]]), R, T)
+    camera, codes, graph, samples, props = _noisy_static_and_far()
     candidates = np.array([[0, 1]])
     today = data_costs(camera, codes, *samples, candidates, props)
-    near = np.full(shape, 0.05)
+    near = np.full(graph.labels.shape, 0.05)
 
     def costs(dominant, reach):
         flags = np.array(dominant)
@@ -158,8 +155,11 @@ def test_a_dominant_motion_leaves_the_view_at_the_near_cost_within_its_reach():
 
 
 def test_the_cost_of_leaving_near_is_the_local_mean_of_the_initial_matches():
-    from stereodeblur.sceneflow.census import census_transform, wrong_match_cost
-    from stereodeblur.sceneflow.fusion import leave_costs_near
+    from stereodeblur.sceneflow.census import (
+        census_transform,
+        leave_costs_near,
+        wrong_match_cost,
+    )
 
     rng = np.random.default_rng(0)
     image = rng.random((30, 40))

@@ -273,9 +273,7 @@ def _alpha_choice_solve(
         base = data_terms(scene, window, view, operator, fixed)
     border = border_for(blurred.shape[1])
 
-    # An estimated motion the guard rejects over the whole view at a candidate up to the
-    # paper's alpha is rejected at every larger one, where the prior can hide its failure.
-    solved, rejected, rejected_from = {}, None, PAPER_ALPHA
+    solved, rejected, rejected_from = {}, None, PAPER_ALPHA  # the guard's carried verdict
 
     def run(alpha) -> _Candidate:
         region = rejected if alpha > rejected_from else None

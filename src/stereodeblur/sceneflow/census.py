@@ -196,6 +196,18 @@ def census_cost_at(reference_code, target, x, y):
     return value / NUM_OFFSETS
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def census_cost_or_leave(code, target, x, y, leave, near, reach):
+    """:func:`census_cost_at`; outside the image ``near`` if ``(x, y)`` lies at most ``reach``
+    px outside, else ``leave``."""
+    c = census_cost_at(code, target, x, y)
+    if c >= 0:
+        return c
+    height, width = target.shape
+    beyond = max(-x, x - (width - 1), -y, y - (height - 1))
+    return near if beyond <= reach else leave
+
+
 def wrong_match_cost(codes: np.ndarray, *, distance: int = 4) -> np.ndarray:
     """What a wrong match costs at every pixel, shape (H, W), float64 in [0, 1].
 
@@ -222,6 +234,27 @@ def _wrong_match_cost(codes, distance):
             total += hamming(c, codes[min(y + distance, height - 1), x])
             out[y, x] = total / (4.0 * NUM_OFFSETS)
     return out
+
+
+def leave_costs_near(lt, lt1, x, y, x1, y1, window: float) -> np.ndarray:
+    """What leaving the view costs a dominant motion at every pixel, shape (H, W): the mean of
+    the census costs at t + 1 of the initial matches ``(x, y) -> (x1, y1)`` (left t codes
+    ``lt``, left t + 1 codes ``lt1``; NaN positions skipped) in a Gaussian window of ``window``
+    px, never above :func:`wrong_match_cost` (a correct match's cost there, so that
+    leaving the view is neither favoured nor penalised against one)."""
+    from scipy.ndimage import gaussian_filter
+
+    leave = wrong_match_cost(lt)
+    known = np.isfinite(x1) & np.isfinite(y1)
+    cost = census_cost(lt, lt1, x[known], y[known], x1[known], y1[known])
+    inside = np.isfinite(cost)
+    sums, counts = np.zeros(leave.shape), np.zeros(leave.shape)
+    rows, cols = y[known][inside].astype(np.int64), x[known][inside].astype(np.int64)
+    np.add.at(sums, (rows, cols), cost[inside])
+    np.add.at(counts, (rows, cols), 1.0)
+    sums, counts = gaussian_filter(sums, window), gaussian_filter(counts, window)
+    mean = np.divide(sums, counts, out=leave.copy(), where=counts > 1e-6 * counts.max())
+    return np.minimum(leave, mean)
 
 
 def census_cost(

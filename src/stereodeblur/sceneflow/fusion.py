@@ -45,7 +45,7 @@ import numpy as np
 
 from .._threads import balanced_ranges, run_ranges
 from ..geometry.camera import StereoCamera
-from .census import census_cost, census_cost_at, wrong_match_cost
+from .census import census_cost_at, census_cost_or_leave, wrong_match_cost
 from .prediction import predict
 from .superpixels import SegmentGraph
 
@@ -130,9 +130,9 @@ def data_costs(
     outside_cost : float
         Least cost per view of a prediction behind a camera (impossible).
     dominant, leave_near, reach : optional
-        Proposals (bool per proposal) that leave the view at ``leave_near`` (per pixel, see
-        :func:`leave_costs_near`) instead of a wrong match's cost, where their position at t + 1
-        lies at most ``reach`` px outside the image.
+        Proposals (bool per proposal) that leave the view at ``leave_near`` (per pixel,
+        :func:`census.leave_costs_near`) instead of a wrong match's cost, where their position
+        at t + 1 lies at most ``reach`` px outside the image.
 
     Returns
     -------
@@ -155,27 +155,6 @@ def data_costs(
     ranges = balanced_ranges(work_bounds, parts)
     run_ranges(_data_costs, ranges, leaving, (lt, rt, lt1, rt1), *arguments)
     return np.where(candidates >= 0, out * factor[:, None], np.inf)
-
-
-def leave_costs_near(lt, lt1, x, y, x1, y1, window: float) -> np.ndarray:
-    """What leaving the view costs a dominant motion at every pixel, shape (H, W): the mean of
-    the census costs at t + 1 of the initial matches ``(x, y) -> (x1, y1)`` (left t codes
-    ``lt``, left t + 1 codes ``lt1``; NaN positions skipped) in a Gaussian window of ``window``
-    px, never above :func:`census.wrong_match_cost` (a correct match's cost there, so that
-    leaving the view is neither favoured nor penalised against one)."""
-    from scipy.ndimage import gaussian_filter
-
-    leave = wrong_match_cost(lt)
-    known = np.isfinite(x1) & np.isfinite(y1)
-    cost = census_cost(lt, lt1, x[known], y[known], x1[known], y1[known])
-    inside = np.isfinite(cost)
-    sums, counts = np.zeros(leave.shape), np.zeros(leave.shape)
-    rows, cols = y[known][inside].astype(np.int64), x[known][inside].astype(np.int64)
-    np.add.at(sums, (rows, cols), cost[inside])
-    np.add.at(counts, (rows, cols), 1.0)
-    sums, counts = gaussian_filter(sums, window), gaussian_filter(counts, window)
-    mean = np.divide(sums, counts, out=leave.copy(), where=counts > 1e-6 * counts.max())
-    return np.minimum(leave, mean)
 
 
 _MIN_WORK = 100000
@@ -227,21 +206,9 @@ def _data_costs(
                 y1 = (K[1, 0] * qx + K[1, 1] * qy + K[1, 2] * qz) / qz
                 d1 = fb * w / qz
                 near = leave_near[y, x] if dominant[p] else leave
-                total += _next_cost(code, lt1, x1, y1, leave, near, reach)
-                total += _next_cost(code, rt1, x1 - d1, y1, leave, near, reach)
+                total += census_cost_or_leave(code, lt1, x1, y1, leave, near, reach)
+                total += census_cost_or_leave(code, rt1, x1 - d1, y1, leave, near, reach)
             out[s, i] = total
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _next_cost(code, target, x, y, leave, near, reach):
-    """Census cost of ``code`` at ``(x, y)`` in ``target`` (t + 1); outside the image ``near``
-    if it lies at most ``reach`` px outside, else ``leave``."""
-    c = census_cost_at(code, target, x, y)
-    if c >= 0:
-        return c
-    height, width = target.shape
-    beyond = max(-x, x - (width - 1), -y, y - (height - 1))
-    return near if beyond <= reach else leave
 
 
 # --------------------------------------------------------------------------- smoothness

@@ -17,14 +17,8 @@ from scipy.sparse.csgraph import connected_components
 
 from ..geometry.camera import StereoCamera
 from .candidates import FitPixels, SegmentProposals, candidate_table
-from .fusion import (
-    ProposalSet,
-    alpha_expansion,
-    data_costs,
-    leave_costs_near,
-    pairwise_tables,
-    sample_pixels,
-)
+from .census import leave_costs_near
+from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
 from .motions import fit_motions
 from .planes import fit_planes
 from .settings import SceneFlowSettings
