@@ -22,8 +22,8 @@ data weight >= 0.5 (the default since stop 29). Each
 choice is scored with the PSNR of the grid column ``alpha=A`` of ``calibrate_defaults.py`` (the
 alpha solved with the default's observations), as that script's checks score the default.
 Written: ``benchmarks/results/held_out_SPLIT_WxH.md`` (and the errors, ``.json``); the errors
-are cached under ``--work``. Stop 28's candidate was not adopted: README, "`held-out` with the
-other view's observation and a noise gate".
+are cached under ``--work``. Stop 28's candidate was not adopted: results/README.md, "`held-out`
+with the other view's observation and a noise gate".
 """
 
 from __future__ import annotations

@@ -78,7 +78,7 @@ def test_blurred_fast_road_with_a_gain_change():
     # 80 px at the bottom, blur over half the frame interval, 40 % brighter at t + 1, half
     # the texture. The fused motion is right (0.03 %) and the first refinement keeps it;
     # the blur-balanced second refinement (no prior) takes it 1.9 % slow: 1.3 px on the
-    # road. Without balancing 0.40 px, but fast_approach needs it (README, scene flow).
+    # road. Without balancing 0.40 px, but fast_approach needs it (results/README.md, scene flow).
     pair = driving_pair(
         (320, 240), bottom_flow=80.0, duty_cycle=0.5, gain=1.4, road_contrast=0.015, num_samples=8
     )

@@ -187,7 +187,7 @@ def neighbour_observation(
     With homography kernels each of its pixels gathers the sharp frame along its own
     trajectory (:func:`~stereodeblur.blur.homography.homography_blur` at ``offset=step``):
     one interpolation, where the blur of the warped frame interpolates twice and smooths
-    what both keep (README, "The neighbouring frames in one gather"). At every instant a
+    what both keep (results/README.md, "The neighbouring frames in one gather"). At every instant a
     pixel shows the segment of the frame's centre that covers it
     (:func:`~stereodeblur.blur.visibility.sceneflow_visibility` at the same offset); where
     none does for more than :data:`UNSEEN_SHARE` of the exposure it gets weight 0.

@@ -35,7 +35,7 @@ Every tuning constant is a field of :class:`~stereodeblur.sceneflow.settings.Sce
 Matching blurred frames directly has a limit: under strong blur that changes
 between the frames (a near plane approaching fast), the estimate is biased;
 balancing the blur (needs ``exposure``) reduces the bias (measurements in
-README.md, scene-flow section).
+results/README.md, scene-flow section).
 
 Conventions are the package's: left reference view at frame t, pixel centres at
 integer coordinates, planes ``P^T n = 1`` in left-camera coordinates at t,

@@ -1,7 +1,7 @@
 """Every tuning constant of the scene-flow estimator, in one frozen value.
 
 Each field states where its default comes from. "Measured" points to the run that
-chose or checked it (tables in ``benchmarks/results/`` and the README); "not tuned"
+chose or checked it (tables in ``benchmarks/results/`` and its README.md); "not tuned"
 says the value was set once when the code was written (commit 4b95b69, the first
 estimator, unless another is named) and only ever checked as part of the whole
 (``stereodeblur bench sceneflow``: every planar and object scene within its targets,
@@ -69,12 +69,12 @@ class SceneFlowSettings:
     # Measured (stop 40; relative to the brightness since 4b2311f): 0.004 took the training
     # half's textured flow error 2.63 -> 2.39 px and its deblurring +0.25 dB, the unseen test
     # 40 +0.08 dB, but the real Middlebury pair's > 2 px disparity errors 10.6 -> 12.5 % and
-    # fast_approach's AEP 0.33 -> 0.51 px (README, "Scene-flow settings"): kept at 0.008.
+    # fast_approach's AEP 0.33 -> 0.51 px (results/README.md, "Scene-flow settings"): kept at 0.008.
     census_threshold: float = 0.008
     # Not tuned (4b2311f): the band is at least 1 x the std of a pixel difference's noise.
     census_noise_factor: float = 1.0
     # Measured (99d51ec): Gaussian of 1.5 px before the census of noisy frames took the
-    # noisy object scenes' mean AEP from 1.09 to 0.64 px (README, scene-flow section).
+    # noisy object scenes' mean AEP from 1.09 to 0.64 px (results/README.md, scene-flow section).
     census_denoise: float = 1.5
     # Not tuned: largest gain that stretches a dark input to the full range (16 = 4 bits).
     max_gain: float = 16.0
@@ -122,16 +122,16 @@ class SceneFlowSettings:
     # Measured (stop 40, the same table): 0.1 moves the mean by 0.006 px (it only prices
     # points behind a camera; a sample that leaves the view costs what a wrong match would).
     outside_cost: float = 0.4
-    # Stop 58 (README, "A static scene's motion at the image border"): where a sample leaves the
-    # view at t + 1, a wrong match's cost made the camera's own motion lose the border of a
-    # static, finely striped scene to an aliased motion that stays in view (family_1059, 17 %
-    # of the frame 60-78 px off). With a window > 0 the dominant motions (global proposals and
-    # the largest regions') leave the view at the local mean cost of the initial flow's matches
-    # at t + 1 (a Gaussian window of this many px; 0: today's cost), if they leave it by at most
-    # dominant_leave_reach times the 95th percentile of the initial flow's length. Off (0): on
-    # the training half (40 scenes, 320x240) 16 px lowered the textured end-point error on 4
-    # scenes and raised it on 1, but the default's PSNR fell by 0.08 dB on average (street_0015
-    # -2.8 dB; calibrate_defaults_train_320x240_dominant_leave_stop58.md); reach not tuned.
+    # Stop 58 (results/README.md, "A static scene's motion at the image border"): where a sample
+    # leaves the view at t + 1, a wrong match's cost made the camera's own motion lose the border of
+    # a static, finely striped scene to an aliased motion that stays in view (family_1059, 17 % of
+    # the frame 60-78 px off). With a window > 0 the dominant motions (global proposals and the
+    # largest regions') leave the view at the local mean cost of the initial flow's matches at t + 1
+    # (a Gaussian window of this many px; 0: today's cost), if they leave it by at most
+    # dominant_leave_reach times the 95th percentile of the initial flow's length. Off (0): on the
+    # training half (40 scenes, 320x240) 16 px lowered the textured end-point error on 4 scenes and
+    # raised it on 1, but the default's PSNR fell by 0.08 dB on average (street_0015 -2.8 dB;
+    # calibrate_defaults_train_320x240_dominant_leave_stop58.md); reach not tuned.
     dominant_leave_window: float = 0.0
     dominant_leave_reach: float = 1.0
     # Measured (stop 40, the same table): edge_floor 0.5 and 1 win on 2 / 4 and lose on 1 / 5
@@ -168,8 +168,8 @@ class SceneFlowSettings:
 
     # --- blur balancing (needs the exposure)
     # Not tuned (905d486): balance the blur where its length changes by > 15 % on at least
-    # half the pixels; with it fast_approach 640x480 goes from 0.8 to 0.33 px AEP (README,
-    # scene-flow section), no other threshold was tried.
+    # half the pixels; with it fast_approach 640x480 goes from 0.8 to 0.33 px AEP
+    # (results/README.md, scene-flow section), no other threshold was tried.
     blur_change: float = 0.15
     blur_change_share: float = 0.5
     # Not tuned: prior weights of the second refinement, led by the balanced images alone.
