@@ -305,9 +305,8 @@ RELABEL_MARGIN = 1.0
 """A pixel moves only if the other segment comes nearer the dense flows by more than this times
 the view's median distance of the estimate to them: where the dense flow is wrong everywhere
 (noisy fine stripes), one pixel's distance is no evidence (train half, 320x240: family_0004
--1.60 dB against no move with 0, 0.00 dB with 1, mean +0.04 dB; results/README.md, "Boundaries from
-the
-dense flow")."""
+-1.60 dB against no move with 0, 0.00 dB with 1, mean +0.04 dB; results/README.md,
+"Boundaries from the dense flow")."""
 
 
 def relabel_rule(settings: DeblurSettings) -> int | None:
