@@ -65,16 +65,16 @@ class SceneFlowSettings:
     checked on construction (:class:`~stereodeblur.errors.InputError` naming it).
     """
 
-    # --- census descriptors (sceneflow.census)
-    # Measured (stop 40; relative to the brightness since 4b2311f): 0.004 took the training
-    # half's textured flow error 2.63 -> 2.39 px and its deblurring +0.25 dB, the unseen test
-    # 40 +0.08 dB, but the real Middlebury pair's > 2 px disparity errors 10.6 -> 12.5 % and
-    # fast_approach's AEP 0.33 -> 0.51 px (results/README.md, "Scene-flow settings"): kept at 0.008.
+    # --- census descriptors (sceneflow.census) Measured (stop 40; relative to the brightness since
+    # 4b2311f): 0.004 took the training half's textured flow error 2.63 -> 2.39 px and its
+    # deblurring +0.25 dB, the unseen test 40 +0.08 dB, but the real Middlebury pair's > 2 px
+    # disparity errors 10.6 -> 12.5 % and fast_approach's AEP 0.33 -> 0.51 px (results/README.md,
+    # "Scene-flow settings"): kept at 0.008.
     census_threshold: float = 0.008
     # Not tuned (4b2311f): the band is at least 1 x the std of a pixel difference's noise.
     census_noise_factor: float = 1.0
-    # Measured (99d51ec): Gaussian of 1.5 px before the census of noisy frames took the
-    # noisy object scenes' mean AEP from 1.09 to 0.64 px (results/README.md, scene-flow section).
+    # Measured (99d51ec): Gaussian of 1.5 px before the census of noisy frames took the noisy object
+    # scenes' mean AEP from 1.09 to 0.64 px (results/README.md, scene-flow section).
     census_denoise: float = 1.5
     # Not tuned: largest gain that stretches a dark input to the full range (16 = 4 bits).
     max_gain: float = 16.0
@@ -166,10 +166,9 @@ class SceneFlowSettings:
     # not rerun with it.
     motion_prior_share: float | None = None
 
-    # --- blur balancing (needs the exposure)
-    # Not tuned (905d486): balance the blur where its length changes by > 15 % on at least
-    # half the pixels; with it fast_approach 640x480 goes from 0.8 to 0.33 px AEP
-    # (results/README.md, scene-flow section), no other threshold was tried.
+    # --- blur balancing (needs the exposure) Not tuned (905d486): balance the blur where its length
+    # changes by > 15 % on at least half the pixels; with it fast_approach 640x480 goes from 0.8 to
+    # 0.33 px AEP (results/README.md, scene-flow section), no other threshold was tried.
     blur_change: float = 0.15
     blur_change_share: float = 0.5
     # Not tuned: prior weights of the second refinement, led by the balanced images alone.
