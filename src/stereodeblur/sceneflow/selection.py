@@ -55,17 +55,20 @@ def select_proposals(
     """
     samples = sample_pixels(graph, pixels.step)
     weights = edge_weights(graph, gray, settings)
-    leaving = _dominant_leaving(codes, pixels, settings)
+    near, reach = _dominant_leaving(codes, pixels, settings)
 
     def fuse(cands, props, init, seed_offset, dominant_ids):
-        if leaving is not None:
-            dominant = np.zeros(len(props), dtype=np.bool_)
-            dominant[dominant_ids] = True
-            extra = {"dominant": dominant, "leave_near": leaving[0], "reach": leaving[1]}
-        else:
-            extra = {}
+        dominant = None if near is None else np.isin(np.arange(len(props)), dominant_ids)
         D = data_costs(
-            camera, codes, *samples, cands, props, outside_cost=settings.outside_cost, **extra
+            camera,
+            codes,
+            *samples,
+            cands,
+            props,
+            outside_cost=settings.outside_cost,
+            dominant=dominant,
+            leave_near=near,
+            reach=reach,
         )
         V = pairwise_tables(
             camera,
@@ -180,9 +183,9 @@ def _largest_regions(graph, region, settings) -> np.ndarray:
 
 def _dominant_leaving(codes, pixels: FitPixels, settings: SceneFlowSettings):
     """``(leave_near, reach)`` for :func:`~.fusion.data_costs` (the dominant motions' cost of
-    leaving the view and how far), None if ``settings.dominant_leave_window`` is 0."""
+    leaving the view and how far); ``(None, 0.0)`` if ``settings.dominant_leave_window`` is 0."""
     if settings.dominant_leave_window <= 0:
-        return None
+        return None, 0.0
     lt, _, lt1, _ = codes
     p = pixels
     near = leave_costs_near(lt, lt1, p.ix, p.iy, p.x1, p.y1, settings.dominant_leave_window)
