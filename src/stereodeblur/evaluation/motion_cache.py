@@ -122,8 +122,9 @@ def cached_motion(scene, source: str, settings, cache: Path):
 def motion_digest(motion) -> str:
     """Hash of what a deblurring takes from ``motion`` (a
     :class:`~stereodeblur.pipeline.FrameMotion`): its scene flow's segments, planes, motions and
-    occlusion, else its flows. A result cached with one motion is not reused with another (stop
-    58: a motion estimated again by other code left the results of the old one in the cache)."""
+    occlusion (not the dense flows beside it, which the frames determine), else its flows. A
+    result cached with one motion is not reused with another (stop 58: a motion estimated again
+    by other code left the results of the old one in the cache)."""
     digest = hashlib.sha256()
     sf = motion.sceneflow
     if sf is not None:
