@@ -6,6 +6,7 @@ Run from the repository root::
     python benchmarks/bench_irls.py --runs 5 --sizes 640x480
 
     python benchmarks/bench_irls.py --plain         # CG products as forward then adjoint
+    python benchmarks/bench_irls.py --interpolation bilinear   # the paper's operator
 
 Each size runs in its own subprocess so that the reported peak resident memory
 (``resource.getrusage``) belongs to that size alone. Reported per size: the median and
@@ -21,7 +22,8 @@ Operators: ``synthetic`` is a spatially varying motion blur built here with scip
 (length 5-25 px, slightly tilted from horizontal, bilinear along y, about 30 nonzeros per
 row) wrapped in ``SparseBlur``; ``homography`` (only when
 ``stereodeblur.blur.homography.homography_blur`` is importable) is the paper's operator for
-one fronto-parallel plane under a random rigid motion.
+one fronto-parallel plane under a random rigid motion, with the package's default
+interpolation unless ``--interpolation`` says otherwise (cubic; bilinear is the paper's).
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
+
+from stereodeblur.settings import DEFAULT_INTERPOLATION, INTERPOLATIONS
 
 SIZES = ((320, 240), (640, 480), (1242, 375))
 
@@ -77,7 +81,7 @@ def synthetic_blur(height: int, width: int, seed: int = 0):
     return SparseBlur(matrix.astype(np.float32), (height, width))
 
 
-def homography_operator(height: int, width: int, seed: int = 0):
+def homography_operator(height: int, width: int, interpolation: str, seed: int = 0):
     """The paper's blur for one fronto-parallel plane under a random rigid motion, or None."""
     try:
         from stereodeblur.blur.homography import homography_blur
@@ -101,7 +105,9 @@ def homography_operator(height: int, width: int, seed: int = 0):
         twists=np.concatenate([v, omega])[None],
         occlusion=np.zeros((height, width), bool),
     )
-    return homography_blur(flow, Exposure(frame_rate=25.0, exposure=0.03))
+    return homography_blur(
+        flow, Exposure(frame_rate=25.0, exposure=0.03), interpolation=interpolation
+    )
 
 
 class TimedOperator:
@@ -151,13 +157,16 @@ def product_seconds(function, image, repeats: int = 20) -> float:
     return statistics.median(times)
 
 
-def run_one(width: int, height: int, kind: str, runs: int, plain: bool) -> dict | None:
+def run_one(
+    width: int, height: int, kind: str, runs: int, plain: bool, interpolation: str
+) -> dict | None:
     from stereodeblur.deconv import deblur_irls
 
     start = time.perf_counter()
-    operator = (
-        synthetic_blur(height, width) if kind == "synthetic" else homography_operator(height, width)
-    )
+    if kind == "synthetic":
+        operator = synthetic_blur(height, width)
+    else:
+        operator = homography_operator(height, width, interpolation)
     if operator is None:
         return None
     build_seconds = time.perf_counter() - start
@@ -206,22 +215,31 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="*", default=[f"{w}x{h}" for w, h in SIZES])
     parser.add_argument("--operators", nargs="*", default=["synthetic", "homography"])
     parser.add_argument("--plain", action="store_true", help="forward then adjoint, no gram")
+    parser.add_argument(
+        "--interpolation",
+        choices=INTERPOLATIONS,
+        default=DEFAULT_INTERPOLATION,
+        help="of the homography operator (the synthetic one is bilinear)",
+    )
     parser.add_argument("--single", nargs=2, metavar=("SIZE", "OPERATOR"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.single:
         width, height = (int(v) for v in args.single[0].split("x"))
-        print(json.dumps(run_one(width, height, args.single[1], args.runs, args.plain)))
+        row = run_one(width, height, args.single[1], args.runs, args.plain, args.interpolation)
+        print(json.dumps(row))
         return
     header = (
         f"{'size':>9} {'operator':>10} {'nnz/row':>7} {'median s':>8} {'min s':>6} "
         f"{'CPU s':>6} {'in A s':>7} {'own s':>6} {'A ms':>5} {'gram ms':>7} "
         f"{'PSNR in':>7} {'PSNR out':>8} {'RSS MB':>7}"
     )
+    print(f"homography operator: {args.interpolation} interpolation")
     print(header)
     for size in args.sizes:
         for kind in args.operators:
             output = subprocess.run(
                 [sys.executable, __file__, "--single", size, kind, "--runs", str(args.runs)]
+                + ["--interpolation", args.interpolation]
                 + (["--plain"] if args.plain else []),
                 check=True,
                 capture_output=True,
