@@ -20,9 +20,8 @@ the operator's nonzeros per row, and the peak RSS of the subprocess. ``--plain``
 
 Operators: ``synthetic`` is a spatially varying motion blur built here with scipy.sparse
 (length 5-25 px, slightly tilted from horizontal, bilinear along y, about 30 nonzeros per
-row) wrapped in ``SparseBlur``; ``homography`` (only when
-``stereodeblur.blur.homography.homography_blur`` is importable) is the paper's operator for
-one fronto-parallel plane under a random rigid motion, with the package's default
+row) wrapped in ``SparseBlur``; ``homography`` is the paper's operator for one
+fronto-parallel plane under a random rigid motion, with the package's default
 interpolation unless ``--interpolation`` says otherwise (cubic; bilinear is the paper's).
 """
 
@@ -82,11 +81,8 @@ def synthetic_blur(height: int, width: int, seed: int = 0):
 
 
 def homography_operator(height: int, width: int, interpolation: str, seed: int = 0):
-    """The paper's blur for one fronto-parallel plane under a random rigid motion, or None."""
-    try:
-        from stereodeblur.blur.homography import homography_blur
-    except ImportError:
-        return None
+    """The paper's blur for one fronto-parallel plane under a random rigid motion."""
+    from stereodeblur.blur.homography import homography_blur
     from stereodeblur.geometry.camera import Exposure, StereoCamera
     from stereodeblur.sceneflow.model import SceneFlow
 
@@ -157,9 +153,7 @@ def product_seconds(function, image, repeats: int = 20) -> float:
     return statistics.median(times)
 
 
-def run_one(
-    width: int, height: int, kind: str, runs: int, plain: bool, interpolation: str
-) -> dict | None:
+def run_one(width: int, height: int, kind: str, runs: int, plain: bool, interpolation: str) -> dict:
     from stereodeblur.deconv import deblur_irls
 
     start = time.perf_counter()
@@ -167,8 +161,6 @@ def run_one(
         operator = synthetic_blur(height, width)
     else:
         operator = homography_operator(height, width, interpolation)
-    if operator is None:
-        return None
     build_seconds = time.perf_counter() - start
     sharp = natural_image(height, width)
     rng = np.random.default_rng(1)
@@ -246,9 +238,6 @@ def main() -> None:
                 text=True,
             ).stdout
             row = json.loads(output.strip().splitlines()[-1])
-            if row is None:
-                print(f"{size:>9} {kind:>10}  (not available)")
-                continue
             print(
                 f"{row['size']:>9} {row['operator']:>10} {row['nnz_per_row']:7.1f} "
                 f"{row['median_s']:8.2f} {row['min_s']:6.2f} {row['cpu_s']:6.2f} "
