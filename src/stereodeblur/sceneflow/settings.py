@@ -80,7 +80,10 @@ class SceneFlowSettings:
     max_gain: float = 16.0
 
     # --- superpixels (sceneflow.superpixels)
-    # None: about 1200 at 640x480, scaled with the image area (paper, supplement B).
+    # None: about 1200 at 640x480, scaled with the image area (paper, supplement B). Measured
+    # (stop 61, results/README.md, "Smaller superpixels"): half as many cost bench paper's objects
+    # 0.3 dB, twice or four times as many gain at most 0.15 dB there and 0.00 to -0.12 dB on the
+    # training half.
     num_segments: int | None = None
     # Not tuned (speed): fits and data costs use a 2-pixel grid from this many pixels on,
     # the 640x480 time in benchmarks/README.md is with it.
