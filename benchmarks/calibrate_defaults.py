@@ -105,6 +105,7 @@ CANDIDATES = {
     "relabel-occlusion": {"boundary_flow": False},
     "census-0.004": {"sceneflow": SceneFlowSettings(census_threshold=0.004)},
     "dominant-leave": {"sceneflow": SceneFlowSettings(dominant_leave_window=16.0)},
+    "other-side": {"sceneflow": SceneFlowSettings(other_side=True)},
     "local-alpha": {"local_alpha": "always"},
     "no-local-alpha": {"local_alpha": "off"},
 }
@@ -122,7 +123,7 @@ counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`
 ``local-alpha`` the prior weight varying over the view on every frame (stop 54),
 ``no-local-alpha`` one alpha per view (the default until stop 54) and ``dominant-leave`` the
 scene flow's dominant motions leaving the view at a correct match's cost (stop 58, not
-adopted);
+adopted), ``other-side`` what leaves the view at t + 1 matched at t - 1 (stop 61);
 all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
 they were measured."""
 

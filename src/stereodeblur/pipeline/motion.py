@@ -227,6 +227,9 @@ def estimate_motion(
 
     index, neighbour = window.index, window.neighbour
     frames = [window.frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
+    other = None
+    if settings.estimator.other_side and window.other is not None:
+        other = tuple(window.frame(v, window.other) for v in ("left", "right"))
     return estimate.estimate_scene_flow(
         *frames,
         window.camera,
@@ -234,6 +237,7 @@ def estimate_motion(
         seed=settings.seed,
         exposure=window.exposure,
         progress=prefixed(progress, "scene flow: "),
+        other_side=other,
     )
 
 

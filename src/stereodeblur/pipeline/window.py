@@ -169,6 +169,8 @@ def frames_needed(
     source = settings.motion_source if motion else None
     if source == "sceneflow" and estimate:
         needed += [(v, i) for i in (index, neighbour) for v in VIEWS]
+        if settings.estimator.other_side and other is not None:
+            needed += [(v, other) for v in VIEWS]
     elif source == "gt":
         needed.append(("left", index))  # the superpixels are cut on the left frame
     sides_read = settings.boundary_weights in TRUST_HANDLINGS

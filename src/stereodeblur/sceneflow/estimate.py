@@ -63,7 +63,7 @@ from .initial import InitialMatches, initial_matches
 from .model import SceneFlow
 from .occlusion import OcclusionMasks, occlusion_masks
 from .prediction import predict
-from .preparation import PreparedFrames, prepare_frames
+from .preparation import PreparedFrames, other_side_codes, prepare_frames
 from .refine import refine_proposals
 from .selection import Selection, select_proposals
 from .settings import SceneFlowSettings
@@ -162,6 +162,7 @@ def estimate_scene_flow(
     progress: ProgressCallback | None = None,
     num_segments: int | None = None,
     debug_dir: str | Path | None = None,
+    other_side: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> SceneFlowEstimate:
     """Estimate a piecewise-rigid scene flow of the left view from frame t to t + 1.
 
@@ -185,6 +186,9 @@ def estimate_scene_flow(
         Overrides ``settings.num_segments`` where given.
     debug_dir : path, optional
         Folder for debug pictures (segments, disparity, flow, occlusion).
+    other_side : tuple of 2 ndarray, optional
+        Left and right frames on the other side of t (t - 1), as the four frames; used where
+        ``settings.other_side`` (what leaves the view at t + 1 is matched there).
 
     Returns
     -------
@@ -194,7 +198,7 @@ def estimate_scene_flow(
         issued as a :class:`SceneFlowWarning`.
     """
     images = (left_t, right_t, left_next, right_next)
-    height, width = _check_images(images)
+    height, width = _check_images(images if other_side is None else (*images, *other_side))
     settings = _check_settings(camera, settings, num_segments)
     rng = np.random.default_rng(seed)
     stages = _Stages(progress)
@@ -219,6 +223,11 @@ def estimate_scene_flow(
         seed=seed,
         rng=rng,
         after_round=lambda k: stages.done("fusion") if k == 0 else None,
+        other_side=(
+            other_side_codes(other_side, prepared, settings)
+            if settings.other_side and other_side is not None
+            else None
+        ),
     )
     stages.done("regions")
     chosen = refine_selection(camera, prepared, graph, selection, settings, exposure=exposure)
@@ -349,9 +358,9 @@ def _check_settings(camera, settings, num_segments) -> SceneFlowSettings:
 
 
 def _check_images(images) -> tuple[int, int]:
-    names = ("left_t", "right_t", "left_next", "right_next")
+    names = ("left_t", "right_t", "left_next", "right_next", "other_side[0]", "other_side[1]")
     shape = None
-    for name, image in zip(names, images, strict=True):
+    for name, image in zip(names[: len(images)], images, strict=True):
         a = np.asarray(image)
         if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (1, 3)):
             raise InputError(f"{name} must have shape (H, W) or (H, W, 3), got {a.shape}")

@@ -114,6 +114,7 @@ def data_costs(
     dominant: np.ndarray | None = None,
     leave_near: np.ndarray | None = None,
     reach: float = 0.0,
+    other_side: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """``D[s, i]``: census cost of candidate ``candidates[s, i]`` on segment ``s``.
 
@@ -133,6 +134,11 @@ def data_costs(
         Proposals (bool per proposal) that leave the view at ``leave_near`` (per pixel,
         :func:`census.leave_costs_near`) instead of a wrong match's cost, where their position
         at t + 1 lies at most ``reach`` px outside the image.
+    other_side : tuple of 2 ndarray, optional
+        Census descriptors of left and right at the frame on the other side of t (t - 1 when
+        the motion leads to t + 1). A sample whose position at t + 1 leaves a view is matched
+        there instead, under the inverse motion (the motion taken as constant over the three
+        frames): what leaves the view at t + 1 was in view at t - 1.
 
     Returns
     -------
@@ -153,7 +159,8 @@ def data_costs(
     leaving = (leave, leave_near, dominant, float(reach))
     arguments = (samples, sample_bounds, candidates, motion, cam, float(outside_cost), out)
     ranges = balanced_ranges(work_bounds, parts)
-    run_ranges(_data_costs, ranges, leaving, (lt, rt, lt1, rt1), *arguments)
+    other = (lt, rt, False) if other_side is None else (*other_side, True)
+    run_ranges(_data_costs, ranges, leaving, (lt, rt, lt1, rt1), other, *arguments)
     return np.where(candidates >= 0, out * factor[:, None], np.inf)
 
 
@@ -163,11 +170,12 @@ _MIN_WORK = 100000
 
 @numba.njit(cache=True, nogil=True)
 def _data_costs(
-    first, last, leaving, codes, samples, bounds, candidates, motion, cam, outside, out
+    first, last, leaving, codes, other, samples, bounds, candidates, motion, cam, outside, out
 ):
     """``out[s, i]`` for segments ``first .. last - 1`` (see :func:`data_costs`)."""
     leave_costs, leave_near, dominant, reach = leaving
     lt, rt, lt1, rt1 = codes
+    lo, ro, use_other = other
     abc, R, T = motion
     K, Kinv, fb = cam
     width_c = candidates.shape[1]
@@ -206,8 +214,26 @@ def _data_costs(
                 y1 = (K[1, 0] * qx + K[1, 1] * qy + K[1, 2] * qz) / qz
                 d1 = fb * w / qz
                 near = leave_near[y, x] if dominant[p] else leave
-                total += census_cost_or_leave(code, lt1, x1, y1, leave, near, reach)
-                total += census_cost_or_leave(code, rt1, x1 - d1, y1, leave, near, reach)
+                left = census_cost_at(code, lt1, x1, y1)
+                right = census_cost_at(code, rt1, x1 - d1, y1)
+                if use_other and (left < 0 or right < 0):
+                    # The other side: Q = R^T (P - T), scaled by the inverse depth w.
+                    ax, ay, az = rx - T[p, 0] * w, ry - T[p, 1] * w, rz - T[p, 2] * w
+                    ox = R[p, 0, 0] * ax + R[p, 1, 0] * ay + R[p, 2, 0] * az
+                    oy = R[p, 0, 1] * ax + R[p, 1, 1] * ay + R[p, 2, 1] * az
+                    oz = R[p, 0, 2] * ax + R[p, 1, 2] * ay + R[p, 2, 2] * az
+                    if oz > 1e-12:
+                        xo = (K[0, 0] * ox + K[0, 1] * oy + K[0, 2] * oz) / oz
+                        yo = (K[1, 0] * ox + K[1, 1] * oy + K[1, 2] * oz) / oz
+                        if left < 0:
+                            left = census_cost_at(code, lo, xo, yo)
+                        if right < 0:
+                            right = census_cost_at(code, ro, xo - fb * w / oz, yo)
+                if left < 0:
+                    left = census_cost_or_leave(code, lt1, x1, y1, leave, near, reach)
+                if right < 0:
+                    right = census_cost_or_leave(code, rt1, x1 - d1, y1, leave, near, reach)
+                total += left + right
             out[s, i] = total
 
 

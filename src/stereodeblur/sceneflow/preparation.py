@@ -15,7 +15,7 @@ from .census import census_descriptors
 from .initial import to_gray, to_gray_u8
 from .settings import SceneFlowSettings
 
-__all__ = ["PreparedFrames", "prepare_frames"]
+__all__ = ["PreparedFrames", "other_side_codes", "prepare_frames"]
 
 MIN_CONTRAST = 2.0 / 255.0  # grey-level std below which a frame counts as textureless
 
@@ -66,15 +66,7 @@ def prepare_frames(images, settings: SceneFlowSettings) -> PreparedFrames:
     gain = min(gain, settings.max_gain)
     u8 = [to_gray_u8(g, scale=gain) for g in grays]
     normed = [np.clip(g * np.float32(gain), 0.0, 1.0) for g in grays]
-    codes = tuple(
-        census_descriptors(
-            g,
-            threshold=settings.census_threshold,
-            noise_factor=settings.census_noise_factor,
-            denoise=settings.census_denoise,
-        )
-        for g in normed
-    )
+    codes = tuple(_codes(g, settings) for g in normed)
     messages = []
     contrast = [float(np.std(g)) for g in normed]
     contrast_ok = min(contrast) >= MIN_CONTRAST
@@ -101,4 +93,20 @@ def prepare_frames(images, settings: SceneFlowSettings) -> PreparedFrames:
         segment_image=segment_image,
         contrast_ok=contrast_ok,
         messages=tuple(messages),
+    )
+
+
+def other_side_codes(images, prepared: PreparedFrames, settings: SceneFlowSettings):
+    """Census descriptors of left and right on the other side of t (``images``, as given),
+    with the gain of the four ``prepared`` frames."""
+    grays = [to_gray(np.asarray(im, dtype=np.float32)) for im in images]
+    return tuple(_codes(np.clip(g * np.float32(prepared.gain), 0.0, 1.0), settings) for g in grays)
+
+
+def _codes(normed: np.ndarray, settings: SceneFlowSettings) -> np.ndarray:
+    return census_descriptors(
+        normed,
+        threshold=settings.census_threshold,
+        noise_factor=settings.census_noise_factor,
+        denoise=settings.census_denoise,
     )

@@ -47,11 +47,14 @@ def select_proposals(
     seed: int,
     rng: np.random.Generator,
     after_round: Callable[[int], None] | None = None,
+    other_side: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Selection:
     """Fuse the proposals, then refit and fuse again region by region.
 
     ``gray`` is the left frame at t (for the contrast edges); ``after_round(k)`` is
-    called after fusion round k (0: the first fusion, then one per region round).
+    called after fusion round k (0: the first fusion, then one per region round);
+    ``other_side``: the census codes of left and right on the other side of t
+    (:func:`~.fusion.data_costs`).
     """
     samples = sample_pixels(graph, pixels.step)
     weights = edge_weights(graph, gray, settings)
@@ -69,6 +72,7 @@ def select_proposals(
             dominant=dominant,
             leave_near=near,
             reach=reach,
+            other_side=other_side,
         )
         V = pairwise_tables(
             camera,

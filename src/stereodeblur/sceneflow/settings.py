@@ -137,6 +137,10 @@ class SceneFlowSettings:
     # calibrate_defaults_train_320x240_dominant_leave_stop58.md); reach not tuned.
     dominant_leave_window: float = 0.0
     dominant_leave_reach: float = 1.0
+    # Stop 61 (results/README.md, "What leaves the view at t + 1 was in view at t - 1"): where a
+    # sample leaves a view at t + 1, match it on the frame on the other side of t, under the
+    # inverse motion, instead of paying a wrong match's cost. Off until measured on both halves.
+    other_side: bool = False
     # Measured (stop 40, the same table): edge_floor 0.5 and 1 win on 2 / 4 and lose on 1 / 5
     # scenes; kept. edge_contrast not tuned. Smoothness across a contrast edge falls to
     # edge_floor; edge_contrast is the mean grey difference (of [0, 1]) that counts as an edge.
@@ -206,6 +210,12 @@ class SceneFlowSettings:
                     )
                 continue
             if value is None and f.name == "motion_prior_share":
+                continue
+            if f.name == "other_side":
+                if not isinstance(value, bool):
+                    raise InputError(
+                        f"SceneFlowSettings.other_side must be True or False, got {value!r}"
+                    )
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise InputError(f"SceneFlowSettings.{f.name} must be a number, got {value!r}")
