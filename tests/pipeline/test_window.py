@@ -60,3 +60,18 @@ def test_missing_ground_truth_is_named(scene):
         deblur_frame(scene, 1, settings=GT)
     with pytest.raises(InputError, match="out of range"):
         gt_needs(scene, 3, GT)
+
+
+def test_the_estimator_reads_the_other_side_where_it_matches_there(scene):
+    from dataclasses import replace
+
+    from stereodeblur.pipeline import frame_motion
+    from stereodeblur.sceneflow import SceneFlowSettings
+
+    single = replace(DeblurSettings(), observations="single", boundary_flow=False, relabel_radius=0)
+    assert ("right", 0) not in read_window(scene, 1, ("left",), single).images
+    other = replace(single, sceneflow=SceneFlowSettings(other_side=True))
+    assert ("right", 0) in read_window(scene, 1, ("left",), other).images
+    first = read_window(scene, 0, ("left",), other)  # no other side: frames 0 and 1 only
+    assert {i for _, i in first.images} == {0, 1}
+    assert frame_motion(scene, 1, "left", other).sceneflow is not None

@@ -174,3 +174,50 @@ def test_the_cost_of_leaving_near_is_the_local_mean_of_the_initial_matches():
     np.testing.assert_array_equal(
         leave_costs_near(lt, lt1, x, y, x1, y1, 4.0), wrong_match_cost(lt)
     )
+
+
+def _sliding_texture(shift=8, disparity=2, shape=(32, 48)):
+    """Random texture sliding ``shift`` px to the right per frame at a constant disparity:
+    census codes of left and right at t, t + 1 and t - 1, the camera and two proposals
+    (the true motion, and no motion)."""
+    from stereodeblur.geometry import StereoCamera
+    from stereodeblur.sceneflow.census import census_transform
+    from stereodeblur.sceneflow.fusion import ProposalSet
+
+    height, width = shape
+    rng = np.random.default_rng(5)
+    texture = rng.uniform(0.1, 0.9, (height, width + 2 * shift + disparity))
+
+    def view(frame, right):  # frame 0: t, 1: t + 1, -1: t - 1
+        start = shift - frame * shift + (disparity if right else 0)
+        return census_transform(texture[:, start : start + width])
+
+    codes = {f: (view(f, False), view(f, True)) for f in (0, 1, -1)}
+    camera = StereoCamera([[50.0, 0, 23.5], [0, 50.0, 15.5], [0, 0, 1]], 0.1)
+    # d0 = 2 px: inverse depth w = 2 / (50 * 0.1) = 0.4; T_x = 0.4 moves a point 50 T_x w = 8 px.
+    T = np.array([[shift / (50.0 * disparity / 5.0), 0.0, 0.0], [0.0, 0.0, 0.0]])
+    props = ProposalSet(
+        np.tile([0.0, 0.0, float(disparity)], (2, 1)), np.tile(np.eye(3), (2, 1, 1)), T
+    )
+    return camera, codes, props
+
+
+def test_what_leaves_the_view_at_t1_is_matched_on_the_other_side():
+    from stereodeblur.sceneflow.census import wrong_match_cost
+    from stereodeblur.sceneflow.fusion import data_costs, sample_pixels
+
+    camera, codes, props = _sliding_texture()
+    graph = _one_segment_graph(codes[0][0].shape)
+    samples = sample_pixels(graph, 1)
+    four = (*codes[0], *codes[1])
+    candidates = np.array([[0, 1]])
+    today = data_costs(camera, four, *samples, candidates, props)
+    other = data_costs(camera, four, *samples, candidates, props, other_side=codes[-1])
+    # No motion: nothing leaves the view, nothing changes.
+    assert other[0, 1] == today[0, 1]
+    # The true motion carries the last 8 columns out of both views at t + 1; at t - 1 they
+    # are in view and match, instead of costing a wrong match each (but for the 3 columns
+    # whose census the image border replicates).
+    leaving = wrong_match_cost(codes[0][0])[:, -8:].sum()
+    assert today[0, 0] - other[0, 0] > 0.6 * 2 * leaving
+    assert other[0, 0] < 0.4 * today[0, 0] and other[0, 0] < 0.1 * other[0, 1]
