@@ -164,6 +164,10 @@ def data_costs(
     return np.where(candidates >= 0, out * factor[:, None], np.inf)
 
 
+OTHER_SIDE_MARGIN = 0.1
+"""Census cost by which a match on the other side must undercut the cost of leaving the view to
+replace it (:func:`data_costs`)."""
+
 _MIN_WORK = 100000
 """Fewer candidate samples than this per range are not worth a thread (:func:`data_costs`)."""
 
@@ -216,8 +220,14 @@ def _data_costs(
                 near = leave_near[y, x] if dominant[p] else leave
                 left = census_cost_at(code, lt1, x1, y1)
                 right = census_cost_at(code, rt1, x1 - d1, y1)
-                if use_other and (left < 0 or right < 0):
-                    # The other side: Q = R^T (P - T), scaled by the inverse depth w.
+                left_out, right_out = left < 0, right < 0
+                if left_out:
+                    left = census_cost_or_leave(code, lt1, x1, y1, leave, near, reach)
+                if right_out:
+                    right = census_cost_or_leave(code, rt1, x1 - d1, y1, leave, near, reach)
+                if use_other and (left_out or right_out):
+                    # The other side: Q = R^T (P - T), scaled by the inverse depth w. A match
+                    # there replaces the cost of leaving only where it is cheaper.
                     ax, ay, az = rx - T[p, 0] * w, ry - T[p, 1] * w, rz - T[p, 2] * w
                     ox = R[p, 0, 0] * ax + R[p, 1, 0] * ay + R[p, 2, 0] * az
                     oy = R[p, 0, 1] * ax + R[p, 1, 1] * ay + R[p, 2, 1] * az
@@ -225,14 +235,12 @@ def _data_costs(
                     if oz > 1e-12:
                         xo = (K[0, 0] * ox + K[0, 1] * oy + K[0, 2] * oz) / oz
                         yo = (K[1, 0] * ox + K[1, 1] * oy + K[1, 2] * oz) / oz
-                        if left < 0:
-                            left = census_cost_at(code, lo, xo, yo)
-                        if right < 0:
-                            right = census_cost_at(code, ro, xo - fb * w / oz, yo)
-                if left < 0:
-                    left = census_cost_or_leave(code, lt1, x1, y1, leave, near, reach)
-                if right < 0:
-                    right = census_cost_or_leave(code, rt1, x1 - d1, y1, leave, near, reach)
+                        if left_out:
+                            c = census_cost_at(code, lo, xo, yo)
+                            left = c if 0 <= c < left - OTHER_SIDE_MARGIN else left
+                        if right_out:
+                            c = census_cost_at(code, ro, xo - fb * w / oz, yo)
+                            right = c if 0 <= c < right - OTHER_SIDE_MARGIN else right
                 total += left + right
             out[s, i] = total
 
