@@ -7,9 +7,10 @@ Run from the repository root::
 
 For every scene of the split (``calibrate_defaults.py``'s family and street scenes, rendered
 into ``--work`` if needed) the scene flow of frame 1 (left view, the blurred frames 1 and 2,
-with the exposure) is estimated with the default :class:`SceneFlowSettings` and with each
-variant (``field=value[,field=value]``, variants separated by ``;``). Errors against the
-rendered flow: the mean end-point error, the share of pixels more than 3 px off, and the
+with the exposure, frame 0 on the other side) is estimated with the default
+:class:`SceneFlowSettings` and with each variant (``field=value[,field=value]``, variants
+separated by ``;``; ``true`` / ``false`` for a switch). Errors against the rendered flow:
+the mean end-point error, the share of pixels more than 3 px off, and the
 *textured* end-point error, each pixel weighted by the sharp frame's gradient magnitude
 (Sobel, averaged over 5 x 5) with errors clipped at 20 px: what the deblurring pays for, where
 an error on a flat wall costs nothing and one segment flying off does not swamp the mean. No
@@ -51,6 +52,9 @@ def parse_variants(text: str) -> dict[str, dict]:
             name = name.strip()
             if name not in known or not value:
                 raise SystemExit(f"--variants: {pair!r} is not field=value of SceneFlowSettings")
+            if value.strip().lower() in ("true", "false"):
+                overrides[name] = value.strip().lower() == "true"
+                continue
             number = float(value)
             overrides[name] = int(number) if number.is_integer() and "." not in value else number
         SceneFlowSettings(**overrides)  # checks the values
@@ -88,6 +92,7 @@ def run_scene(task) -> dict:
     kind, seed, size, work, variants = task
     scene = open_scene(protocol.ensure_scene(kind, seed, size, Path(work)))
     frames = [scene.read_frame(v, i) for i in (1, 2) for v in ("left", "right")]
+    other_side = tuple(scene.read_frame(v, 0) for v in ("left", "right"))  # used if other_side
     truth = scene.read_gt_flow("left", 1)
     sharp = scene.read_gt_sharp("left", 1)
     out = {}
@@ -100,6 +105,7 @@ def run_scene(task) -> dict:
                 scene.info.camera,
                 settings=SceneFlowSettings(**overrides),
                 exposure=scene.info.exposure,
+                other_side=other_side,
             )
         errors = flow_errors(estimate.sceneflow.flow(), truth, sharp)
         out[name] = {**errors, "seconds": time.perf_counter() - start}
