@@ -137,8 +137,9 @@ def data_costs(
     other_side : tuple of 2 ndarray, optional
         Census descriptors of left and right at the frame on the other side of t (t - 1 when
         the motion leads to t + 1). A sample whose position at t + 1 leaves a view is matched
-        there instead, under the inverse motion (the motion taken as constant over the three
-        frames): what leaves the view at t + 1 was in view at t - 1.
+        there, under the inverse motion (the motion taken as constant over the three frames),
+        and that match replaces the cost of leaving where it is lower by more than
+        :data:`OTHER_SIDE_MARGIN`: what leaves the view at t + 1 was in view at t - 1.
 
     Returns
     -------
@@ -229,7 +230,7 @@ def _data_costs(
                     right = census_cost_or_leave(code, rt1, x1 - d1, y1, leave, near, reach)
                 if use_other and (left_out or right_out):
                     # The other side: Q = R^T (P - T), scaled by the inverse depth w. A match
-                    # there replaces the cost of leaving only where it is cheaper.
+                    # there replaces the cost of leaving where it is cheaper by the margin.
                     ax, ay, az = rx - T[p, 0] * w, ry - T[p, 1] * w, rz - T[p, 2] * w
                     ox = R[p, 0, 0] * ax + R[p, 1, 0] * ay + R[p, 2, 0] * az
                     oy = R[p, 0, 1] * ax + R[p, 1, 1] * ay + R[p, 2, 1] * az
