@@ -139,9 +139,10 @@ class SceneFlowSettings:
     dominant_leave_reach: float = 1.0
     # Stop 61 (results/README.md, "What leaves the view at t + 1 was in view at t - 1"): where a
     # sample leaves a view at t + 1, match it on the frame on the other side of t, under the
-    # inverse motion, instead of paying a wrong match's cost. Off: it repairs family_1059's border
-    # (11.9 -> 0.25 px) and gains 0.05 dB on the training half, but loses 0.08 dB on 40 unseen
-    # scenes (family_1081 -1.74 dB; calibrate_defaults_*_320x240_other_side_v2_stop61.md).
+    # inverse motion, instead of paying a wrong match's cost. Off: at 320x240 it repairs
+    # family_1059's border (11.9 -> 0.25 px) and gains 0.05 dB on the training half, but loses
+    # 0.08 dB on 40 unseen scenes (family_1081 -1.74 dB;
+    # calibrate_defaults_*_320x240_other_side_v2_stop61.md); at 640x480 family_1059 gets worse.
     other_side: bool = False
     # Measured (stop 40, the same table): edge_floor 0.5 and 1 win on 2 / 4 and lose on 1 / 5
     # scenes; kept. edge_contrast not tuned. Smoothness across a contrast edge falls to
