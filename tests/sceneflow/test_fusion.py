@@ -86,7 +86,8 @@ def _noisy_static_and_far():
     Returns the camera, codes, graph, samples and proposals."""
     from stereodeblur.geometry import StereoCamera
     from stereodeblur.sceneflow.census import census_transform
-    from stereodeblur.sceneflow.fusion import ProposalSet, sample_pixels
+    from stereodeblur.sceneflow.data_term import sample_pixels
+    from stereodeblur.sceneflow.fusion import ProposalSet
 
     shape = (40, 56)
     rng = np.random.default_rng(3)
@@ -104,7 +105,7 @@ def _noisy_static_and_far():
 def test_leaving_the_view_is_not_cheaper_than_matching_noise():
     # Every match costs as much as a wrong one, so a motion that carries all pixels out of
     # the image must not win.
-    from stereodeblur.sceneflow.fusion import data_costs
+    from stereodeblur.sceneflow.data_term import data_costs
 
     camera, codes, graph, samples, props = _noisy_static_and_far()
     D = data_costs(camera, codes, *samples, np.array([[0, 1]]), props)
@@ -116,7 +117,8 @@ def test_leaving_the_view_is_not_cheaper_than_matching_noise():
 def test_leaving_the_view_is_free_in_a_clean_flat_region():
     from stereodeblur.geometry import StereoCamera
     from stereodeblur.sceneflow.census import census_transform
-    from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+    from stereodeblur.sceneflow.data_term import data_costs, sample_pixels
+    from stereodeblur.sceneflow.fusion import ProposalSet
 
     shape = (40, 56)
     codes = tuple(census_transform(np.full(shape, 0.4)) for _ in range(4))
@@ -132,7 +134,7 @@ def test_leaving_the_view_is_free_in_a_clean_flat_region():
 
 def test_a_dominant_motion_leaves_the_view_at_the_near_cost_within_its_reach():
     from stereodeblur.sceneflow.census import wrong_match_cost
-    from stereodeblur.sceneflow.fusion import data_costs
+    from stereodeblur.sceneflow.data_term import data_costs
 
     camera, codes, graph, samples, props = _noisy_static_and_far()
     candidates = np.array([[0, 1]])
@@ -204,7 +206,7 @@ def _sliding_texture(shift=8, disparity=2, shape=(32, 48)):
 
 def test_what_leaves_the_view_at_t1_is_matched_on_the_other_side():
     from stereodeblur.sceneflow.census import wrong_match_cost
-    from stereodeblur.sceneflow.fusion import data_costs, sample_pixels
+    from stereodeblur.sceneflow.data_term import data_costs, sample_pixels
 
     camera, codes, props = _sliding_texture()
     graph = _one_segment_graph(codes[0][0].shape)

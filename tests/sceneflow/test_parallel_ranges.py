@@ -4,9 +4,10 @@ import numpy as np
 
 from stereodeblur.geometry import StereoCamera, se3_exp
 from stereodeblur.geometry.plane import disparity_coefficients
-from stereodeblur.sceneflow import fusion, refine
+from stereodeblur.sceneflow import data_term, refine
 from stereodeblur.sceneflow.census import census_transform
-from stereodeblur.sceneflow.fusion import ProposalSet, data_costs, sample_pixels
+from stereodeblur.sceneflow.data_term import data_costs, sample_pixels
+from stereodeblur.sceneflow.fusion import ProposalSet
 from stereodeblur.sceneflow.superpixels import segment_graph
 
 from .scenes import CAMERA, SIZE, frames, render_views
@@ -64,8 +65,8 @@ def test_data_costs_do_not_depend_on_the_ranges(monkeypatch):
     )
     candidates = rng.integers(-1, num, (graph.num_segments, 4))
     args = (camera, codes, samples, bounds, factor, candidates, props)
-    monkeypatch.setattr(fusion, "_MIN_WORK", 10**12)
+    monkeypatch.setattr(data_term, "_MIN_WORK", 10**12)
     whole = data_costs(*args)
-    monkeypatch.setattr(fusion, "_MIN_WORK", 1)
+    monkeypatch.setattr(data_term, "_MIN_WORK", 1)
     np.testing.assert_array_equal(data_costs(*args), whole)
     assert np.all(np.isinf(whole[candidates < 0])) and np.all(np.isfinite(whole[candidates >= 0]))

@@ -197,12 +197,9 @@ def census_cost_at(reference_code, target, x, y):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def census_cost_or_leave(code, target, x, y, leave, near, reach):
-    """:func:`census_cost_at`; outside the image ``near`` if ``(x, y)`` lies at most ``reach``
+def leave_cost(target, x, y, leave, near, reach):
+    """Cost of a match at ``(x, y)`` outside ``target``: ``near`` if it lies at most ``reach``
     px outside, else ``leave``."""
-    c = census_cost_at(code, target, x, y)
-    if c >= 0:
-        return c
     height, width = target.shape
     beyond = max(-x, x - (width - 1), -y, y - (height - 1))
     return near if beyond <= reach else leave

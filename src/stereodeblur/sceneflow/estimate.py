@@ -18,7 +18,7 @@ This estimator follows the same model in stages:
    global proposals (sequential RANSAC over the segments' proposals: a plane
    with its motion that explains a large part of the image, refitted on all its
    pixels);
-5. fusion (:mod:`selection`, :mod:`fusion`): each segment picks its own, a
+5. fusion (:mod:`selection`, :mod:`data_term`, :mod:`fusion`): each segment picks its own, a
    neighbour's or a global proposal by the 4-view census cost plus a truncated
    smoothness term (weaker across contrast edges), by alpha-expansion over the
    segment adjacency graph; regions of segments that picked the same proposal are

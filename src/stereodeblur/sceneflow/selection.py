@@ -18,7 +18,8 @@ from scipy.sparse.csgraph import connected_components
 from ..geometry.camera import StereoCamera
 from .candidates import FitPixels, SegmentProposals, candidate_table
 from .census import leave_costs_near
-from .fusion import ProposalSet, alpha_expansion, data_costs, pairwise_tables, sample_pixels
+from .data_term import data_costs, sample_pixels
+from .fusion import ProposalSet, alpha_expansion, pairwise_tables
 from .motions import fit_motions
 from .planes import fit_planes
 from .settings import SceneFlowSettings
@@ -54,7 +55,7 @@ def select_proposals(
     ``gray`` is the left frame at t (for the contrast edges); ``after_round(k)`` is
     called after fusion round k (0: the first fusion, then one per region round);
     ``other_side``: the census codes of left and right on the other side of t
-    (:func:`~.fusion.data_costs`).
+    (:func:`~.data_term.data_costs`).
     """
     samples = sample_pixels(graph, pixels.step)
     weights = edge_weights(graph, gray, settings)
@@ -186,7 +187,7 @@ def _largest_regions(graph, region, settings) -> np.ndarray:
 
 
 def _dominant_leaving(codes, pixels: FitPixels, settings: SceneFlowSettings):
-    """``(leave_near, reach)`` for :func:`~.fusion.data_costs` (the dominant motions' cost of
+    """``(leave_near, reach)`` for :func:`~.data_term.data_costs` (the dominant motions' cost of
     leaving the view and how far); ``(None, 0.0)`` if ``settings.dominant_leave_window`` is 0."""
     if settings.dominant_leave_window <= 0:
         return None, 0.0

@@ -111,7 +111,7 @@ class SceneFlowSettings:
     # Not tuned: disparity of the fronto-parallel plane used where nothing could be matched.
     fallback_disparity: float = 1.0
 
-    # --- fusion (sceneflow.fusion)
+    # --- fusion (sceneflow.data_term, sceneflow.fusion)
     # Measured (stop 40, the 40 training scenes at 320x240, textured end-point error,
     # benchmarks/results/sceneflow_settings_train_320x240.md): 16 neighbours change no scene
     # by more than 0.09 px. Neighbours (longest shared border first) whose proposals a
