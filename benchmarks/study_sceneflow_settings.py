@@ -92,7 +92,9 @@ def run_scene(task) -> dict:
     kind, seed, size, work, variants = task
     scene = open_scene(protocol.ensure_scene(kind, seed, size, Path(work)))
     frames = [scene.read_frame(v, i) for i in (1, 2) for v in ("left", "right")]
-    other_side = tuple(scene.read_frame(v, 0) for v in ("left", "right"))  # used if other_side
+    other_side = None  # frame 0, read if a variant matches there
+    if any(overrides.get("other_side") for overrides in variants.values()):
+        other_side = tuple(scene.read_frame(v, 0) for v in ("left", "right"))
     truth = scene.read_gt_flow("left", 1)
     sharp = scene.read_gt_sharp("left", 1)
     out = {}

@@ -31,6 +31,7 @@ def test_defaults_are_valid_and_frozen():
         ("refine_scale", "0.25"),
         ("motion_prior_share", 1.5),
         ("motion_prior_share", "none"),
+        ("other_side", 1),
     ],
 )
 def test_invalid_values_name_the_field(name, value):

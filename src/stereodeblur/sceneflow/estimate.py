@@ -63,7 +63,7 @@ from .initial import InitialMatches, initial_matches
 from .model import SceneFlow
 from .occlusion import OcclusionMasks, occlusion_masks
 from .prediction import predict
-from .preparation import PreparedFrames, other_side_codes, prepare_frames
+from .preparation import PreparedFrames, prepare_frames
 from .refine import refine_proposals
 from .selection import Selection, select_proposals
 from .settings import SceneFlowSettings
@@ -202,7 +202,7 @@ def estimate_scene_flow(
     settings = _check_settings(camera, settings, num_segments)
     rng = np.random.default_rng(seed)
     stages = _Stages(progress)
-    prepared = prepare_frames(images, settings)
+    prepared = prepare_frames(images, settings, other_side if settings.other_side else None)
     stages.done("census")
     matches = initial_matches(prepared.u8)
     stages.done("initial")
@@ -223,22 +223,15 @@ def estimate_scene_flow(
         seed=seed,
         rng=rng,
         after_round=lambda k: stages.done("fusion") if k == 0 else None,
-        other_side=(
-            other_side_codes(other_side, prepared, settings)
-            if settings.other_side and other_side is not None
-            else None
-        ),
+        other_side=prepared.other_side_codes,
     )
     stages.done("regions")
     chosen = refine_selection(camera, prepared, graph, selection, settings, exposure=exposure)
     stages.done("refine")
-    matched = _matched_fractions(
-        camera, prepared.codes, graph.labels, chosen, pixels.step, settings
-    )
+    matched = _matched_fractions(camera, prepared.codes, graph, chosen, pixels.step, settings)
     sceneflow, masks = _with_occlusion(camera, graph.labels, chosen, matches, settings)
     stages.done("occlusion")
-    messages = [*prepared.messages, *matches.messages, *start.messages]
-    messages += _match_messages(matched, prepared.contrast_ok, settings)
+    messages = _messages(prepared, matches, start, matched, settings)
     for message in messages:
         warnings.warn(message, SceneFlowWarning, stacklevel=2)
     if debug_dir is not None:
@@ -375,8 +368,9 @@ def _check_images(images) -> tuple[int, int]:
     return int(shape[0]), int(shape[1])
 
 
-def _matched_fractions(camera, codes, labels, chosen: ChosenMotion, step, settings):
+def _matched_fractions(camera, codes, graph, chosen: ChosenMotion, step, settings):
     """Share of (grid) pixels whose census cost in each other view is below match_cost."""
+    labels = graph.labels
     height, width = labels.shape
     yy, xx = np.mgrid[0:height:step, 0:width:step]
     x, y = xx.ravel(), yy.ravel()
@@ -397,9 +391,11 @@ def _matched_fractions(camera, codes, labels, chosen: ChosenMotion, step, settin
     return out
 
 
-def _match_messages(matched, contrast_ok, settings) -> list[str]:
-    """Warnings where few pixels match (only meaningful with some texture)."""
-    messages = []
+def _messages(prepared: PreparedFrames, matches, start, matched, settings) -> list[str]:
+    """The stages' problems, and warnings where few pixels match (only meaningful with some
+    texture)."""
+    messages = [*prepared.messages, *matches.messages, *start.messages]
+    contrast_ok = prepared.contrast_ok
     if contrast_ok and matched["right_t"] < settings.min_matched:
         messages.append(
             f"only {100 * matched['right_t']:.0f}% of the pixels match between the left and "

@@ -15,7 +15,7 @@ from .census import census_descriptors
 from .initial import to_gray, to_gray_u8
 from .settings import SceneFlowSettings
 
-__all__ = ["PreparedFrames", "other_side_codes", "prepare_frames"]
+__all__ = ["PreparedFrames", "prepare_frames"]
 
 MIN_CONTRAST = 2.0 / 255.0  # grey-level std below which a frame counts as textureless
 
@@ -42,6 +42,9 @@ class PreparedFrames:
         Whether every frame has some texture.
     messages : tuple of str
         Problems with the input (textureless, identical frames or views).
+    other_side_codes : tuple of 2 ndarray or None
+        Census descriptors of left and right on the other side of t, with the same gain, if
+        given.
     """
 
     grays: tuple[np.ndarray, ...]
@@ -52,21 +55,39 @@ class PreparedFrames:
     segment_image: np.ndarray
     contrast_ok: bool
     messages: tuple[str, ...]
+    other_side_codes: tuple[np.ndarray, ...] | None = None
 
 
-def prepare_frames(images, settings: SceneFlowSettings) -> PreparedFrames:
+def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> PreparedFrames:
     """Grey frames with a common gain (dark inputs use the full 8-bit range) and census codes.
 
     Census "similar" bands are relative to the brightness (dark texture counts) and above
     the sensor noise (estimated on each frame); noisy frames are smoothed first.
+    ``other_side``: left and right on the other side of t, for their census codes only.
     """
     grays = [to_gray(np.asarray(im, dtype=np.float32)) for im in images]
     top = max(float(np.percentile(g, 99.5)) for g in grays)
     gain = 1.0 / top if top > 1e-3 else 1.0
     gain = min(gain, settings.max_gain)
     u8 = [to_gray_u8(g, scale=gain) for g in grays]
-    normed = [np.clip(g * np.float32(gain), 0.0, 1.0) for g in grays]
-    codes = tuple(_codes(g, settings) for g in normed)
+
+    def normalised(gray):
+        return np.clip(gray * np.float32(gain), 0.0, 1.0)
+
+    def codes_of(gray):
+        return census_descriptors(
+            gray,
+            threshold=settings.census_threshold,
+            noise_factor=settings.census_noise_factor,
+            denoise=settings.census_denoise,
+        )
+
+    normed = [normalised(g) for g in grays]
+    codes = tuple(codes_of(g) for g in normed)
+    other_codes = None
+    if other_side is not None:
+        other = (to_gray(np.asarray(im, dtype=np.float32)) for im in other_side)
+        other_codes = tuple(codes_of(normalised(g)) for g in other)
     messages = []
     contrast = [float(np.std(g)) for g in normed]
     contrast_ok = min(contrast) >= MIN_CONTRAST
@@ -93,20 +114,5 @@ def prepare_frames(images, settings: SceneFlowSettings) -> PreparedFrames:
         segment_image=segment_image,
         contrast_ok=contrast_ok,
         messages=tuple(messages),
-    )
-
-
-def other_side_codes(images, prepared: PreparedFrames, settings: SceneFlowSettings):
-    """Census descriptors of left and right on the other side of t (``images``, as given),
-    with the gain of the four ``prepared`` frames."""
-    grays = [to_gray(np.asarray(im, dtype=np.float32)) for im in images]
-    return tuple(_codes(np.clip(g * np.float32(prepared.gain), 0.0, 1.0), settings) for g in grays)
-
-
-def _codes(normed: np.ndarray, settings: SceneFlowSettings) -> np.ndarray:
-    return census_descriptors(
-        normed,
-        threshold=settings.census_threshold,
-        noise_factor=settings.census_noise_factor,
-        denoise=settings.census_denoise,
+        other_side_codes=other_codes,
     )

@@ -214,10 +214,10 @@ class SceneFlowSettings:
                 continue
             if value is None and f.name == "motion_prior_share":
                 continue
-            if f.name == "other_side":
+            if f.type in (bool, "bool"):  # a switch
                 if not isinstance(value, bool):
                     raise InputError(
-                        f"SceneFlowSettings.other_side must be True or False, got {value!r}"
+                        f"SceneFlowSettings.{f.name} must be True or False, got {value!r}"
                     )
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)):
