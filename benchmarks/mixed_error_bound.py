@@ -58,8 +58,12 @@ FRAME = 1
 VIEWS = ("left", "right")
 
 
-def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
-    """``{row: (psnr, gt/mixed mse, alpha)}`` at the alpha of least gt/mixed error."""
+def evaluate(
+    root: Path, name: str, settings: DeblurSettings, *, setup=None, alphas=ALPHAS, by="mixed"
+) -> dict:
+    """``{row: (psnr, gt/mixed mse, alpha)}`` at the alpha of ``alphas`` with the least gt/mixed
+    error (``by='mixed'``) or the highest PSNR (``'psnr'``); ``setup`` the scene's objects and
+    camera (default: the object scene ``name``'s), whose instants give the hidden samples."""
     scene = open_scene(root)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -75,7 +79,8 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
     share = hidden_fraction(visible)
     assert np.array_equal(share, operators["left"].hidden), "not the pipeline's visibility"
     today = operators["left"].operator
-    setup = object_setup(name, size=(sf.shape[1], sf.shape[0]))
+    if setup is None:
+        setup = object_setup(name, size=(sf.shape[1], sf.shape[0]))
     part, fill = hidden_samples(sf, exposure, n, visible, setup, "cubic")
     dropped = (today.matrix - part).tocsr()
     sums = np.asarray(dropped.sum(axis=1)).ravel()
@@ -100,7 +105,7 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
     out = {}
     for key, (op, data, w) in problems.items():
         best = None
-        for alpha in ALPHAS:
+        for alpha in alphas:
             result = deblur_irls(
                 data,
                 op,
@@ -120,7 +125,7 @@ def evaluate(root: Path, name: str, settings: DeblurSettings) -> dict:
                 masked_mse(image, truth, mixed, border=border),
                 alpha,
             )
-            if best is None or score[1] < best[1]:
+            if best is None or (score[0] > best[0] if by == "psnr" else score[1] < best[1]):
                 best = score
         out[key] = best
     return out
