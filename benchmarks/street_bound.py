@@ -32,10 +32,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import calibrate_defaults as protocol  # noqa: E402
+from hidden_fill_bound import finish  # noqa: E402
 from mixed_error_bound import ROWS, evaluate  # noqa: E402
 
 from stereodeblur.cli.base import add_size, size_text  # noqa: E402
-from stereodeblur.io.outputs import atomic_write_text  # noqa: E402
 from stereodeblur.settings import DeblurSettings  # noqa: E402
 
 MARGIN = 0.5
@@ -105,8 +105,11 @@ def report(results: dict, argv, minutes: float) -> list[str]:
         + " | oracle fill - needed |",
         "|---|" + "---|" * (7 + len(ROWS)),
     ]
+    short = []
     for name, r in results.items():
         needed = r["initial-flow/monocular"] + MARGIN
+        if r[ROWS[-1]][0] < needed:
+            short.append(name)
         cells = [
             f"{r['blurred']:.2f}",
             f"{r['initial-flow/monocular']:.2f}",
@@ -117,7 +120,6 @@ def report(results: dict, argv, minutes: float) -> list[str]:
         cells += [f"{r[k][0]:.2f} ({r[k][2]:g})" for k in ROWS]
         cells.append(f"{r[ROWS[-1]][0] - needed:+.2f}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    short = [n for n, r in results.items() if r[ROWS[-1]][0] < r["initial-flow/monocular"] + MARGIN]
     lines += [
         "",
         f"The oracle fill is short of the needed PSNR on {len(short)} of {len(results)}"
@@ -136,11 +138,7 @@ def main(argv=None) -> int:
         results[name] = bound(name, args.size, Path(args.work) / size_text(args.size))
         print(name, results[name], flush=True)
     argv = sys.argv[1:] if argv is None else argv
-    lines = report(results, argv, (time.perf_counter() - start) / 60)
-    print("\n".join(lines))
-    if args.output:
-        atomic_write_text(Path(args.output), "\n".join(lines) + "\n")
-    return 0
+    return finish(report(results, argv, (time.perf_counter() - start) / 60), args)
 
 
 if __name__ == "__main__":
