@@ -335,6 +335,7 @@ def score(cases, psnrs, source: str) -> Score:
 
 
 def _entry(name, formula, alphas, psnrs, params="") -> dict:
+    name = name.replace("|", r"\|")  # a rule's name is a Markdown table cell
     return dict(name=name, formula=formula, alphas=alphas, psnrs=psnrs, params=params)
 
 
