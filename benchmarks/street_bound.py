@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import calibrate_defaults as protocol  # noqa: E402
 from hidden_fill_bound import finish  # noqa: E402
-from mixed_error_bound import ROWS, evaluate  # noqa: E402
+from mixed_error_bound import ROWS, evaluate, rms  # noqa: E402
 
 from stereodeblur.cli.base import add_size, size_text  # noqa: E402
 from stereodeblur.settings import DeblurSettings  # noqa: E402
@@ -66,26 +66,20 @@ def parse(argv=None) -> argparse.Namespace:
     return args
 
 
-def model_residuals(scene, truth: np.ndarray, border: int) -> dict:
-    """RMS of ``I - B`` and of ``A I - B`` with the true motion's and the monocular path's
-    operators (``A`` as the default settings build it), frame 1, left view, ``border`` px off."""
+def monocular_residual(scene, truth: np.ndarray, blurred: np.ndarray, border: int) -> float:
+    """:func:`rms` of ``A I - B`` with the monocular path's operator ``A`` (as the default
+    settings build it), frame 1, left view."""
     import warnings
 
     from stereodeblur.pipeline import build_view_operator, read_window, stereo_motion
 
-    blurred = scene.read_frame("left", protocol.FRAME).astype(np.float64)
-    inner = (slice(border, -border), slice(border, -border))
-    out = {"residual/blurred": float(np.sqrt(np.mean((truth - blurred)[inner] ** 2)))}
-    for key, column in (("gt", COLUMNS[2]), ("monocular", COLUMNS[0])):
-        settings = column.settings()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            window = read_window(scene, protocol.FRAME, ("left",), settings)
-            motion = stereo_motion(scene, window, ("left",), settings).views["left"]
-            operator = build_view_operator(window, motion, settings).operator
-        residual = operator.forward(truth) - blurred
-        out[f"residual/{key}"] = float(np.sqrt(np.mean(residual[inner] ** 2)))
-    return out
+    settings = COLUMNS[0].settings()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        window = read_window(scene, protocol.FRAME, ("left",), settings)
+        motion = stereo_motion(scene, window, ("left",), settings).views["left"]
+        operator = build_view_operator(window, motion, settings).operator
+    return rms(operator.forward(truth) - blurred, border)
 
 
 def bound(name: str, size, work: Path) -> dict:
@@ -114,7 +108,13 @@ def bound(name: str, size, work: Path) -> dict:
     rows = evaluate(
         root, name, settings, setup=family_setup(spec), alphas=protocol.ALPHAS, by="psnr"
     )
-    return out | rows | model_residuals(scene, truth.astype(np.float64), border)
+    truth, blurred = truth.astype(np.float64), blurred.astype(np.float64)
+    residuals = {
+        "residual/blurred": rms(truth - blurred, border),
+        "residual/gt": rows.pop("model residual"),
+        "residual/monocular": monocular_residual(scene, truth, blurred, border),
+    }
+    return out | rows | residuals
 
 
 def report(results: dict, argv, minutes: float) -> list[str]:
