@@ -116,6 +116,19 @@ def test_scene_lists_follow_the_split(runner):
         runner.parse([*only, "family_1022"])  # not among the four scenes
 
 
+def test_split_note_counts_seeds_not_scenes(runner):
+    def note(*argv):
+        return runner.split_note(runner.parse(["--split", "test", *argv]))
+
+    streets = note("--skip", "100", "--kinds", "street")  # seeds from 1100
+    assert "seed 1100" in streets and "rendered after" in streets
+    studied = note("--skip", "100")  # both kinds: seeds from 1050, studied in stops 53-57
+    assert "seed 1050" in studied and "`--skip 160`" in studied
+    assert "rendered after" not in studied
+    assert "rendered after" in note("--skip", "160")
+    assert "tuned on" in runner.split_note(runner.parse([]))
+
+
 def test_monocular_check_needs_every_semi_real_scene(runner):
     def row(name, kind, default, mono):
         columns = {"sceneflow/default": {"psnr": default}, "initial-flow/monocular": {"psnr": mono}}
