@@ -189,7 +189,7 @@ def columns_for(motions, candidates=tuple(CANDIDATES), grid: bool = True) -> lis
 
 
 LOOKED_AT = 80
-"""The test split's first seeds per kind (1000-1079), whose scenes were studied while the defaults
+"""The test split's first seeds per kind (1000-1079), whose scenes were looked at while the defaults
 changed: seeds 1000-1020 in stops 33-37, and the rules of stops 53-57 were found on family_1049,
 family_1050, family_1055 and family_1060. No default has changed since stop 57; seeds from 1080
 on were first rendered in stop 59."""
@@ -727,7 +727,7 @@ def split_note(args) -> str:
         )
     return (
         f"Test split from seed {1000 + seeds}: not tuned on, but its seeds 1000-{999 + LOOKED_AT} "
-        f"were studied while the defaults changed (stops 33-57); `--skip "
+        f"were looked at while the defaults changed (stops 33-57); `--skip "
         f"{LOOKED_AT * len(args.kinds)}` reports scenes never looked at."
     )
 
