@@ -719,15 +719,15 @@ def split_note(args) -> str:
     """What the scenes of ``args`` were used for."""
     if args.split == "train":
         return "Train split: the scenes the defaults may be tuned on."
+    from stereodeblur.synth.scenespec import TEST_SEEDS
+
     seeds = args.skip // len(args.kinds)
+    first = f"Test split from seed {TEST_SEEDS[seeds]}"
     if seeds >= LOOKED_AT:
-        return (
-            f"Test split from seed {1000 + seeds}: rendered after the defaults last changed "
-            "(stop 57), never looked at while tuning."
-        )
+        return f"{first}: rendered after the defaults last changed (stop 57), never looked at."
     return (
-        f"Test split from seed {1000 + seeds}: not tuned on, but its seeds 1000-{999 + LOOKED_AT} "
-        f"were looked at while the defaults changed (stops 33-57); `--skip "
+        f"{first}: not tuned on, but its seeds {TEST_SEEDS[0]}-{TEST_SEEDS[LOOKED_AT - 1]} were "
+        f"looked at while the defaults changed (stops 33-57); `--skip "
         f"{LOOKED_AT * len(args.kinds)}` reports scenes never looked at."
     )
 

@@ -38,6 +38,7 @@ from stereodeblur.evaluation import paper_bench
 from stereodeblur.evaluation.metrics import border_for, masked_mse, psnr
 from stereodeblur.io.scene import open_scene
 from stereodeblur.pipeline import build_view_operator, data_terms, read_window, stereo_motion
+from stereodeblur.pipeline.alpha import pixel_errors
 from stereodeblur.pipeline.observations import view_observations
 from stereodeblur.settings import OBSERVATION_ROBUST_SCALE, DeblurSettings
 from stereodeblur.synth.objects import object_setup
@@ -58,9 +59,9 @@ FRAME = 1
 VIEWS = ("left", "right")
 
 
-def rms(image: np.ndarray, border: int) -> float:
-    """Root mean square of ``image`` without ``border`` px on every side."""
-    return float(np.sqrt(np.mean(image[border:-border, border:-border] ** 2)))
+def rms(predicted, observed, border: int) -> float:
+    """Root mean square of ``predicted - observed`` without ``border`` px on every side."""
+    return float(np.sqrt(pixel_errors(predicted, observed, border=border).mean()))
 
 
 def evaluate(
@@ -69,8 +70,8 @@ def evaluate(
     """``{row: (psnr, gt/mixed mse, alpha)}`` at the alpha of ``alphas`` with the least gt/mixed
     error (``by='mixed'``) or the highest PSNR (``'psnr'``); ``setup`` the scene's objects and
     camera (default: the object scene ``name``'s), whose instants give the hidden samples. Also
-    ``'model residual'``: :func:`rms` of ``A I - B`` with the row *true motion*'s operator at the
-    true sharp frame ``I``."""
+    ``'model residual'``: :func:`rms` of ``A I`` against ``B``, with the row *true motion*'s
+    operator at the true sharp frame ``I``."""
     scene = open_scene(root)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -109,7 +110,7 @@ def evaluate(
     truth = scene.read_gt_sharp("left", FRAME).astype(np.float64)
     mixed = scene.read_gt_mixed("left", FRAME)
     border = border_for(truth.shape[1])
-    out = {"model residual": rms(today.forward(truth) - blurred, border)}
+    out = {"model residual": rms(today.forward(truth), blurred, border)}
     for key, (op, data, w) in problems.items():
         best = None
         for alpha in alphas:

@@ -66,20 +66,16 @@ def parse(argv=None) -> argparse.Namespace:
     return args
 
 
-def monocular_residual(scene, truth: np.ndarray, blurred: np.ndarray, border: int) -> float:
+def monocular_residual(scene, motion, truth: np.ndarray, blurred: np.ndarray, border: int) -> float:
     """:func:`rms` of ``A I - B`` with the monocular path's operator ``A`` (as the default
-    settings build it), frame 1, left view."""
-    import warnings
-
-    from stereodeblur.pipeline import build_view_operator, read_window, stereo_motion
+    settings build it from the monocular column's ``motion``), frame 1, left view."""
+    from stereodeblur.pipeline import build_view_operator, read_window
+    from stereodeblur.pipeline.motion import relabelled
 
     settings = COLUMNS[0].settings()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        window = read_window(scene, protocol.FRAME, ("left",), settings)
-        motion = stereo_motion(scene, window, ("left",), settings).views["left"]
-        operator = build_view_operator(window, motion, settings).operator
-    return rms(operator.forward(truth) - blurred, border)
+    window = read_window(scene, protocol.FRAME, ("left",), settings)
+    operator = build_view_operator(window, relabelled(motion, settings), settings).operator
+    return rms(operator.forward(truth), blurred, border)
 
 
 def bound(name: str, size, work: Path) -> dict:
@@ -108,11 +104,12 @@ def bound(name: str, size, work: Path) -> dict:
     rows = evaluate(
         root, name, settings, setup=family_setup(spec), alphas=protocol.ALPHAS, by="psnr"
     )
+    mono = protocol.motion_for(scene, COLUMNS[0], motions, seconds, cache)  # the column's own
     truth, blurred = truth.astype(np.float64), blurred.astype(np.float64)
     residuals = {
-        "residual/blurred": rms(truth - blurred, border),
+        "residual/blurred": rms(truth, blurred, border),
         "residual/gt": rows.pop("model residual"),
-        "residual/monocular": monocular_residual(scene, truth, blurred, border),
+        "residual/monocular": monocular_residual(scene, mono, truth, blurred, border),
     }
     return out | rows | residuals
 
