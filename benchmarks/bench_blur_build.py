@@ -239,8 +239,15 @@ def main(argv=None) -> None:
         default=["320x240", "640x480", "1242x375"],
         help="image sizes WIDTHxHEIGHT",
     )
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--interpolation", choices=INTERPOLATIONS, default=DEFAULT_INTERPOLATION)
+    parser.add_argument(
+        "--repeats", type=int, default=5, help="builds per operator (default %(default)s)"
+    )
+    parser.add_argument(
+        "--interpolation",
+        choices=INTERPOLATIONS,
+        default=DEFAULT_INTERPOLATION,
+        help="kernel sampling (default %(default)s, the package's; bilinear is the paper's)",
+    )
     args = parser.parse_args(argv)
     sampling = {"num_samples": NUM_SAMPLES, "interpolation": args.interpolation}
 

@@ -6,7 +6,7 @@ Run from the repository root::
     python benchmarks/bench_clip.py --frames 6 --motion-source gt --json out.json
 
 A planar clip (``forward_yaw``) is rendered once into ``--work`` and deblurred with
-the paper's settings (70 samples, 10 IRLS x 25 CG) by ``stereodeblur.clip.deblur_clip``
+the default settings (70 samples, 4 IRLS x 25 CG) by ``stereodeblur.clip.deblur_clip``
 in three ways, each from scratch (``overwrite``):
 
 - ``workers=1``: in this process (numba uses every core);
@@ -28,6 +28,7 @@ import json
 import os
 import shutil
 import statistics
+import tempfile
 import time
 from pathlib import Path
 
@@ -81,10 +82,21 @@ def measure(name, clip, output, settings, frames, **where) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", default="640x480")
-    parser.add_argument("--frames", type=int, default=4, help="frames (x 2 views) per way")
-    parser.add_argument("--motion-source", default="sceneflow", choices=["sceneflow", "gt"])
-    parser.add_argument("--work", default="bench-clip", help="folder for the clip and outputs")
+    parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default %(default)s)")
+    parser.add_argument(
+        "--frames", type=int, default=4, help="frames (x 2 views) per way (default %(default)s)"
+    )
+    parser.add_argument(
+        "--motion-source",
+        default="sceneflow",
+        choices=["sceneflow", "gt"],
+        help="estimated scene flow or the true motion (default %(default)s)",
+    )
+    parser.add_argument(
+        "--work",
+        default=str(Path(tempfile.gettempdir()) / "stereodeblur_bench_clip"),
+        help="folder for the clip and outputs (default %(default)s)",
+    )
     parser.add_argument("--no-dask", action="store_true", help="skip the LocalCluster")
     parser.add_argument("--json", help="also write the rows to this file")
     args = parser.parse_args()
@@ -128,7 +140,7 @@ def main() -> None:
             )
     print(
         f"{args.size}, {args.frames} frames x 2 views, motion {args.motion_source}, "
-        f"paper settings, {cores} cores, load average {os.getloadavg()[0]:.1f}"
+        f"default settings, {cores} cores, load average {os.getloadavg()[0]:.1f}"
     )
     print(f"{'way':>18} {'views':>5} {'wall s':>7} {'frames/min':>10} {'s/task':>7} {'dB gain':>7}")
     for row in rows:

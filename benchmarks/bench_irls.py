@@ -203,9 +203,19 @@ def run_one(width: int, height: int, kind: str, runs: int, plain: bool, interpol
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--sizes", nargs="*", default=[f"{w}x{h}" for w, h in SIZES])
-    parser.add_argument("--operators", nargs="*", default=["synthetic", "homography"])
+    parser.add_argument("--runs", type=int, default=3, help="runs per size (default %(default)s)")
+    parser.add_argument(
+        "--sizes",
+        nargs="*",
+        default=[f"{w}x{h}" for w, h in SIZES],
+        help="WIDTHxHEIGHT ... (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--operators",
+        nargs="*",
+        default=["synthetic", "homography"],
+        help="synthetic and/or homography (default: both)",
+    )
     parser.add_argument("--plain", action="store_true", help="forward then adjoint, no gram")
     parser.add_argument(
         "--interpolation",

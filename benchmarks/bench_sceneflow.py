@@ -19,7 +19,7 @@ motorcycle check runs
 in a subprocess too. Output: Markdown tables (stdout), and ``--json FILE`` with
 all numbers.
 
-Targets (issue 3): at 640x480, planar scenes, every pixel counted: scene-flow AEP
+Targets: at 640x480, planar scenes, every pixel counted: scene-flow AEP
 <= 0.5 px, ADE <= 1 px; <= 15 s per frame pair on a 2-core machine, peak memory
 <= 3 GB; motorcycle: fewer > 2 px disparity errors than plain SGBM.
 """
@@ -79,10 +79,20 @@ def _run(args: list[str]) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT of the planar scenes")
-    parser.add_argument("--scenes", default=None, help="comma-separated planar scene names")
-    parser.add_argument("--root", default=None, help="folder of (cached) rendered scenes")
-    parser.add_argument("--no-motorcycle", action="store_true")
+    parser.add_argument(
+        "--size", default="640x480", help="WIDTHxHEIGHT of the planar scenes (default %(default)s)"
+    )
+    parser.add_argument(
+        "--scenes", default=None, help="comma-separated planar scene names (default: all nine)"
+    )
+    parser.add_argument(
+        "--root",
+        default=None,
+        help="folder of (cached) rendered scenes (default: $TMPDIR/stereodeblur_planar_WxH)",
+    )
+    parser.add_argument(
+        "--no-motorcycle", action="store_true", help="skip the motorcycle disparity check"
+    )
     parser.add_argument("--json", default=None, help="write all numbers to this file")
     parser.add_argument("--_worker", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)

@@ -1,4 +1,4 @@
-"""Honest calibration protocol of the defaults (issue 12): tune on one half, report on the other.
+"""Calibration protocol of the defaults: tune on one half of a scene set, report on the other.
 
 Run from the repository root::
 
@@ -35,9 +35,10 @@ kernels='displacement'``, with the boundary handling of its strongest version,
 against gt/sharp without a border of 2.5 % of the width (at least 4 px), as
 ``stereodeblur bench paper`` does.
 
-Checks (issue 12), per motion source: the default is within 0.5 dB of the best alpha on
-average and within 1.5 dB on every scene, and never more than 0.5 dB below the paper's
-settings. Written: ``--output`` (markdown, default
+Checks, per motion source: the default is within 0.5 dB of the best alpha on average and
+within 1.5 dB on every scene, and never more than 0.5 dB below the paper's settings; with the
+estimated motion, the default is at least 0.5 dB above the monocular path on average and on
+every semi-real (street) scene. Written: ``--output`` (markdown, default
 ``benchmarks/results/calibrate_defaults_SPLIT_WxH.md``) and the same path with ``.json``.
 Rendered scenes and per-column results are cached under ``--work``, so a rerun resumes.
 """
@@ -82,10 +83,11 @@ FRAME = 1
 MOTIONS = ("gt", "sceneflow")
 KINDS = ("family", "street")
 WITHIN_BEST_MEAN, WITHIN_BEST_EACH, BELOW_PAPER = 0.5, 1.5, 0.5
-"""dB limits of the checks (issue 12)."""
+"""dB limits of the alpha checks: mean and worst gap to the best grid alpha, and below the
+paper's settings."""
 OVER_MONOCULAR = 0.5
 """dB the estimated-motion default must beat the monocular path by on the semi-real
-scenes, on average and on every one (issue 13)."""
+scenes, on average and on every one."""
 FEATURES_VERSION = " features 1"
 MOTION_STORED = " motion stored"
 """In the signature of the scene-flow columns computed from the stored scene flow."""
@@ -109,23 +111,19 @@ CANDIDATES = {
     "local-alpha": {"local_alpha": "always"},
     "no-local-alpha": {"local_alpha": "off"},
 }
-"""Candidate defaults (settings overrides), checked like the default: ``auto`` the noise
-rule (the default alpha until stop 23), ``adaptive`` the default before 2026-11-26,
-``observations`` issue 13's further observations (stop 22, with the noise rule),
-``other-view`` the other view's (with 'held-out''s alpha chosen from the view's own frame; the
-default since stop 25), ``all`` both views and the neighbouring frames (with 'held-out''s alpha,
-stop 42) and ``single`` the view's own frame alone (the default until stop 24),
-``iterations-10x25`` the paper's iteration
-counts (the default until stop 22; ``benchmarks/study_iterations.py``), ``cubic`` and
-``bilinear`` the kernels' interpolation (bilinear the default until stop 24),
-``no-relabel`` the estimate's own segment boundaries (the default until stop 34),
-``relabel-occlusion`` the moved boundaries with the occlusion-aware operator everywhere and
-``local-alpha`` the prior weight varying over the view on every frame (stop 54),
-``no-local-alpha`` one alpha per view (the default until stop 54) and ``dominant-leave`` the
-scene flow's dominant motions leaving the view at a correct match's cost (stop 58, not
-adopted), ``other-side`` what leaves the view at t + 1 matched at t - 1 (stop 61);
-all but the cross-view ones, the interpolations and the boundaries with the noise rule, as
-they were measured."""
+"""Candidate settings (overrides of the defaults), each checked like the default: ``auto`` the
+noise rule's alpha alone, ``cross-view`` one grid step above the best predictor of the other
+view, ``adaptive`` and ``adaptive-cross-view`` the adaptive boundary handling, ``observations``
+every observation with the noise rule's alpha, ``single`` / ``other-view`` / ``all`` the
+observations each view is fitted to (its own frame; + the other view; + the neighbouring
+frames), ``iterations-10x25`` the paper's iteration counts with the noise rule's alpha,
+``cubic`` and ``bilinear`` the kernels' interpolation, ``no-relabel`` the estimate's own segment
+boundaries, ``relabel-occlusion`` the moved boundaries with the occlusion-aware operator
+everywhere, ``census-0.004`` a lower census threshold, ``dominant-leave`` the scene flow's
+dominant motions allowed to leave the view at a correct match's cost, ``other-side`` what leaves
+the view at t + 1 matched at t - 1, ``local-alpha`` the prior weight varying over the view on
+every frame and ``no-local-alpha`` one alpha per view. The defaults and the reason for each:
+``docs/defaults.md``."""
 
 
 @dataclass(frozen=True)
@@ -190,9 +188,8 @@ def columns_for(motions, candidates=tuple(CANDIDATES), grid: bool = True) -> lis
 
 LOOKED_AT = 80
 """The test split's first seeds per kind (1000-1079), whose scenes were looked at while the defaults
-changed: seeds 1000-1020 in stops 33-37, and the rules of stops 53-57 were found on family_1049,
-family_1050, family_1055 and family_1060. No default has changed since stop 57; seeds from 1080
-on were first rendered in stop 59."""
+were tuned; the scenes of later seeds were rendered after the defaults last changed (commit
+49db94b, 2026-12-05)."""
 
 
 def scene_list(split: str, count: int, kinds, skip: int = 0) -> list[tuple[str, int]]:
@@ -348,7 +345,7 @@ def spectral_share(grey: np.ndarray, cutoff: float = HIGH_FREQUENCY) -> float:
 
 
 def frame_features(scene, motion, source: str, blurred: np.ndarray) -> dict:
-    """What the pipeline knows before solving (``benchmarks/alpha_study.py``): noise
+    """What the pipeline knows before solving, stored with each scene's results: noise
     estimate, blur length (flow length to the neighbour times the duty cycle), fine texture,
     untrusted pixels, paths leaving the view, the default's alpha."""
     import warnings
@@ -406,7 +403,7 @@ def motion_for(scene, column: Column, motions: dict, seconds: dict, cache: Path)
     (the deblurring moves them, ``relabel_radius``). The default estimator's
     scene flow and initial flow are stored in ``cache`` and read back on later runs
     (:func:`~stereodeblur.evaluation.motion_cache.cached_motion`): the scene flow of these
-    scenes differed by up to 0.44 dB in the results between sessions with the same code."""
+    scenes differed by up to 0.44 dB in the results between runs of the same code."""
     import warnings
 
     from stereodeblur.evaluation.motion_cache import cached_motion
@@ -546,7 +543,8 @@ def gaps(row: dict, source: str, key: str = "default") -> dict:
 
 
 def checks(rows, motions, key: str = "default") -> list[tuple[str, bool, str]]:
-    """The issue's three checks per motion source: ``(name, passed, figures)``; of the
+    """The three alpha checks per motion source (:data:`WITHIN_BEST_MEAN`,
+    :data:`WITHIN_BEST_EACH`, :data:`BELOW_PAPER`): ``(name, passed, figures)``; of the
     default, or of the column ``key``."""
     out = []
     for source in motions:
@@ -581,7 +579,7 @@ def _streets(rows) -> list[dict]:
 
 
 def monocular_checks(rows, keys) -> list[tuple[str, bool, str]]:
-    """Issue 13's semi-real check of each column of ``keys`` (estimated motion): at least
+    """The semi-real check of each column of ``keys`` (estimated motion): at least
     :data:`OVER_MONOCULAR` dB over the monocular path on average and on every street scene."""
     street = _streets(rows)
     if not street:
@@ -605,7 +603,7 @@ def monocular_checks(rows, keys) -> list[tuple[str, bool, str]]:
 
 
 def monocular_bounds(rows, motions) -> list[str]:
-    """What issue 13's semi-real check could reach at most with each motion source of
+    """What the semi-real check could reach at most with each motion source of
     ``motions``: its best grid alpha per street scene (an oracle) over the monocular path."""
     street = _streets(rows)
     out = []
@@ -724,10 +722,10 @@ def split_note(args) -> str:
     seeds = args.skip // len(args.kinds)
     first = f"Test split from seed {TEST_SEEDS[seeds]}"
     if seeds >= LOOKED_AT:
-        return f"{first}: rendered after the defaults last changed (stop 57), never looked at."
+        return f"{first}: rendered after the defaults last changed, never looked at."
     return (
         f"{first}: not tuned on, but its seeds {TEST_SEEDS[0]}-{TEST_SEEDS[LOOKED_AT - 1]} were "
-        f"looked at while the defaults changed (stops 33-57); `--skip "
+        f"looked at while the defaults were tuned; `--skip "
         f"{LOOKED_AT * len(args.kinds)}` reports scenes never looked at."
     )
 
@@ -751,15 +749,15 @@ def report(rows, args, seconds: float) -> str:
         "",
     ]
     if args.grid:
-        lines += ["## Checks (issue 12)", ""]
+        lines += ["## Checks: the default's alpha", ""]
     else:
-        lines += ["## The default against the candidates (no alpha grid: no issue 12 checks)", ""]
+        lines += ["## The default against the candidates (no alpha grid: no alpha checks)", ""]
         lines += candidate_table(rows, motions, args.candidates)
     lines += [f"- {'PASS' if ok else 'FAIL'}: {name} ({figures})" for name, ok, figures in passed]
     if "sceneflow" in motions:
         semi_real = monocular_checks(rows, ["default", *args.candidates])
         if semi_real:
-            lines += ["", "## Checks (issue 13): semi-real scenes against the monocular path", ""]
+            lines += ["", "## Checks: semi-real scenes against the monocular path", ""]
             lines += [f"- {'PASS' if ok else 'FAIL'}: {n} ({f})" for n, ok, f in semi_real]
             lines += monocular_bounds(rows, motions)
     if args.grid:
@@ -772,7 +770,12 @@ def report(rows, args, seconds: float) -> str:
 
 def parse(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--split", choices=("train", "test"), default="train")
+    parser.add_argument(
+        "--split",
+        choices=("train", "test"),
+        default="train",
+        help="train: seeds 0-999, the scenes to tune on; test: seeds 1000-1999 (default train)",
+    )
     parser.add_argument("--size", default="320x240", help="WIDTHxHEIGHT (default 320x240)")
     parser.add_argument("--scenes", type=int, default=3, help="number of scenes (default 3)")
     parser.add_argument(
@@ -782,14 +785,20 @@ def parse(argv=None):
         help="skip the split's first SKIP scenes (a multiple of the number of kinds), e.g. "
         "those already looked at (default 0)",
     )
-    parser.add_argument("--kinds", default=",".join(KINDS), help="family,street (alternating)")
+    parser.add_argument(
+        "--kinds", default=",".join(KINDS), help="scene kinds, alternating (default family,street)"
+    )
     parser.add_argument(
         "--only",
         default="",
         help="of those scenes, only these (comma-separated names, e.g. family_1049): the ones "
         "a change can act on",
     )
-    parser.add_argument("--motions", default=",".join(MOTIONS), help="gt,sceneflow")
+    parser.add_argument(
+        "--motions",
+        default=",".join(MOTIONS),
+        help="motion sources: gt and/or sceneflow (default gt,sceneflow)",
+    )
     parser.add_argument(
         "--work",
         default=str(Path(tempfile.gettempdir()) / "stereodeblur_calibration"),
@@ -808,7 +817,12 @@ def parse(argv=None):
         help="without the alpha grid (and the checks against it): the default against the "
         "candidates only",
     )
-    parser.add_argument("--output", default=None, help="markdown output (and .json beside)")
+    parser.add_argument(
+        "--output",
+        default=None,
+        help="markdown output, and .json beside it "
+        "(default benchmarks/results/calibrate_defaults_SPLIT_WxH.md)",
+    )
     args = parser.parse_args(argv)
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
@@ -851,70 +865,6 @@ def run_all(function, tasks, jobs: int) -> list:
         jobs, mp_context=context, initializer=_start_worker, initargs=(os.getpid(),)
     ) as pool:
         return list(pool.map(function, tasks))
-
-
-def nearest_alpha(alpha: float) -> int:
-    """Index of the grid alpha (:data:`ALPHAS`) nearest ``alpha``, in log."""
-    return int(np.argmin([abs(np.log(alpha / a)) for a in ALPHAS]))
-
-
-def cached_columns(work: Path, name: str, columns) -> list[dict] | None:
-    """The cached results of ``columns`` on scene ``name`` under ``work`` (as
-    :func:`cached_column` stores them, with the motion it would take now), None if one is
-    missing: a study's reading."""
-    from stereodeblur.io.scene import open_scene
-
-    scene = open_scene(work / "scenes" / name)
-    cache, motions, out = work / "results" / name, {}, []
-    for column in columns:
-        _, signature = _column_signature(scene, column, motions, {}, cache)
-        data = _stored(_column_path(cache, column), column.motion_source, signature)
-        if data is None:
-            return None
-        out.append(data)
-    return out
-
-
-def run_study(name: str, function, report, scenes: int, description: str, argv=None) -> int:
-    """Run a study on the protocol's scenes: ``function((kind, seed, size, work))`` returns a
-    scene's ``(name, entry)`` (cached in ``WORK/WxH/NAME_SPLIT.json``, :func:`cached_rows`),
-    ``report(rows, work, args, minutes)`` its report's lines, written with the rows as
-    ``benchmarks/results/NAME_SPLIT_WxH.md`` and ``.json``. Arguments: ``--split``, ``--size``,
-    ``--scenes`` (default ``scenes``), ``--skip``, ``--jobs``, ``--work``; ``description``
-    their help's."""
-    parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--split", choices=("train", "test"), default="train")
-    parser.add_argument("--size", default="320x240")
-    parser.add_argument("--scenes", type=int, default=scenes)
-    parser.add_argument("--skip", type=int, default=0)
-    parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--work", default="/tmp/calib/work")
-    args = parser.parse_args(argv)
-    if args.skip < 0 or args.skip % len(KINDS):
-        parser.error(f"--skip must be a multiple of {len(KINDS)}, got {args.skip}")
-    size, work = tuple(int(v) for v in args.size.split("x")), Path(args.work) / args.size
-    start = time.perf_counter()
-    names = scene_list(args.split, args.scenes, KINDS, args.skip)
-    path = work / f"{name}_{args.split}.json"
-    rows = cached_rows(function, names, path, lambda k, s: (k, s, size, work), args.jobs)
-    lines = report(rows, work, args, (time.perf_counter() - start) / 60)
-    output = Path(f"benchmarks/results/{name}_{args.split}_{args.size}.md")
-    atomic_write_text(output, "\n".join(lines) + "\n")
-    atomic_write_text(output.with_suffix(".json"), json.dumps(rows, indent=1))
-    print("\n".join(lines))
-    return 0
-
-
-def cached_rows(function, names, path: Path, task, jobs: int) -> dict:
-    """A study's ``{name: entry}`` for the scenes ``names`` (``(kind, seed)``), in their order:
-    read from the JSON file ``path``, and for the scenes not in it yet ``function(task(kind,
-    seed))`` (which returns ``(name, entry)``) in ``jobs`` processes, ``path`` written after."""
-    rows = json.loads(path.read_text()) if path.is_file() else {}
-    todo = [task(kind, seed) for kind, seed in names if f"{kind}_{seed:04d}" not in rows]
-    for name, entry in run_all(function, todo, jobs):
-        rows[name] = entry
-        atomic_write_text(path, json.dumps(rows, indent=1))
-    return {f"{kind}_{seed:04d}": rows[f"{kind}_{seed:04d}"] for kind, seed in names}
 
 
 def _start_worker(parent: int) -> None:

@@ -1,20 +1,19 @@
-"""What each observation contributes (issue 13): ``bench paper``'s scenes, one run.
+"""What each observation contributes: ``bench paper``'s scenes, one run.
 
 Run from the repository root::
 
     python benchmarks/paper_observations.py --work /tmp/paperbench \
         --output benchmarks/results/paper_observations_640x480.md
 
-Frame 1 (left) of every scene of ``stereodeblur bench paper`` (the same work folder layout,
-so a ``bench paper`` run's renders, scene flows and columns are reused), deblurred with the
-estimated scene flow by "ours" (gated boundaries, auto alpha) from the view's own blurred
-frame only, + the other view, + the neighbouring frames, and all three
-(``DeblurSettings.observations``), next to the monocular path with the same defaults and
-the initial optical flow at the paper's settings; and ours from the single observation and
-from all with the paper's 10 IRLS x 25 CG iterations (:data:`PAPER_COUNTS`) instead of the
-default counts.
-Writes PSNR and the mean squared error in the gt/mixed pixels per scene and the means per
-scene group to ``--output``.
+Frame 1 (left) of every scene of ``stereodeblur bench paper`` (the same work folder layout, so a
+``bench paper`` run's renders, scene flows and columns are reused), deblurred with the estimated
+scene flow by "ours" (``bench paper``'s "ours (full)" column) from the view's own blurred frame
+only, + the other view, + the neighbouring frames, and all three
+(``DeblurSettings.observations``), next to the monocular path with the same defaults and the
+initial optical flow at the paper's settings; and ours from the single observation and from all
+with the paper's 10 IRLS x 25 CG iterations (:data:`PAPER_COUNTS`) instead of the default
+counts. Writes PSNR and the mean squared error in the gt/mixed pixels per scene and the means
+per scene group to ``--output``.
 """
 
 from __future__ import annotations
@@ -41,7 +40,7 @@ TITLES = {
 
 
 PAPER_COUNTS = (PAPER_IRLS, PAPER_CG)
-"""``--irls 10 --cg 25``: the paper's counts (the default before stop 22), beside the default."""
+"""``--irls 10 --cg 25``: the paper's iteration counts, beside the default ones."""
 
 
 def columns(observations=OBSERVATIONS, baselines: bool = True):
@@ -69,7 +68,9 @@ def paper_count_columns():
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", default="/tmp/paperbench", help="bench paper's work folder")
+    parser.add_argument(
+        "--work", default="/tmp/paperbench", help="bench paper's work folder (default %(default)s)"
+    )
     parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
     parser.add_argument("--scenes", default=None, help="comma-separated (default: all)")
     parser.add_argument(

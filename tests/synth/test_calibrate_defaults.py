@@ -122,7 +122,7 @@ def test_split_note_counts_seeds_not_scenes(runner):
 
     streets = note("--skip", "100", "--kinds", "street")  # seeds from 1100
     assert "seed 1100" in streets and "rendered after" in streets
-    studied = note("--skip", "100")  # both kinds: seeds from 1050, studied in stops 53-57
+    studied = note("--skip", "100")  # both kinds: seeds from 1050, looked at while tuning
     assert "seed 1050" in studied and "`--skip 160`" in studied
     assert "rendered after" not in studied
     assert "rendered after" in note("--skip", "160")
@@ -217,8 +217,8 @@ print(add_one(1))
 
 
 def test_the_parent_still_compiles_after_a_parallel_run():
-    """run_all used to set NUMBA_NUM_THREADS=1 in the parent's environment; once numba's
-    threads ran there, every later compilation in the parent failed ("Cannot set
+    """run_all leaves the parent's NUMBA_NUM_THREADS alone: set there after numba's threads
+    ran, it would make every later compilation in the parent fail ("Cannot set
     NUMBA_NUM_THREADS to a different value once the threads have been launched")."""
     import os
     import subprocess
@@ -267,42 +267,12 @@ def test_two_runs_render_a_shared_scene_once(runner, tmp_path, monkeypatch):
     assert (roots[0] / "gt" / "family.json").is_file()
 
 
-def test_a_study_keeps_its_scenes_and_computes_each_once(runner, tmp_path, monkeypatch):
-    """run_study: the scenes of the split in order, each computed once (later runs read the
-    cache under WORK/WxH), the report and the rows written under benchmarks/results."""
-    monkeypatch.chdir(tmp_path)
-    computed = []
-
-    def entry(task):
-        kind, seed, size, _ = task
-        computed.append((kind, seed))
-        return f"{kind}_{seed:04d}", {"size": list(size)}
-
-    def report(rows, work, args, minutes):
-        return [f"{args.split} {name} {row['size']}" for name, row in rows.items()]
-
-    common = ["--size", "64x48", "--work", str(tmp_path / "w")]
-    assert runner.run_study("probe", entry, report, 5, "a probe", [*common, "--skip", "2"]) == 0
-    assert runner.run_study("probe", entry, report, 5, "a probe", common) == 0
-    first = runner.scene_list("train", 5, runner.KINDS, skip=2)
-    assert computed == [*first, ("family", 0), ("street", 0)]  # the rest read from the cache
-    names = [f"{k}_{s:04d}" for k, s in runner.scene_list("train", 5, runner.KINDS)]
-    written = (tmp_path / "benchmarks/results/probe_train_64x48.md").read_text().splitlines()
-    assert written == [f"train {name} [64, 48]" for name in names]
-    cache = json.loads((tmp_path / "w" / "64x48" / "probe_train.json").read_text())
-    assert set(cache) == set(names) | {f"{k}_{s:04d}" for k, s in first}
-    with pytest.raises(SystemExit):
-        runner.run_study("probe", entry, report, 5, "a probe", [*common, "--skip", "3"])
-
-
-def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path, monkeypatch):
-    """A study reads a cached column only if it was made with the motion the calibration would
-    take now (stop 58: results of a motion estimated again were read as the new motion's)."""
-    from stereodeblur.io import scene as scene_io
-
-    assert [runner.nearest_alpha(a) for a in (2e-5, 1e-3, 5e-3, 1e-6)] == [1, 4, 5, 0]
+def test_a_cached_column_is_read_only_with_the_motion_it_would_take_now(
+    runner, tmp_path, monkeypatch
+):
+    """A column's cached result is reused only if it was made with the motion the calibration
+    would take now: a result of a motion estimated again is computed afresh."""
     flows = {"now": np.zeros((4, 6, 2), np.float32)}
-    monkeypatch.setattr(scene_io, "open_scene", lambda root: root)
     monkeypatch.setattr(
         runner,
         "motion_for",
@@ -311,14 +281,20 @@ def test_studies_read_the_grid_as_the_calibration_stored_it(runner, tmp_path, mo
         ),
     )
     column = runner.Column(runner.alpha_key(1e-4), "initial-flow", {"alpha": 1e-4})
-    assert runner.cached_columns(tmp_path, "family_0000", [column]) is None
-    path = tmp_path / "results" / "family_0000" / f"initial-flow_{column.key}.json"
+    cache = tmp_path / "results" / "family_0000"
+    path = runner._column_path(cache, column)
+
+    def stored():
+        _, signature = runner._column_signature(None, column, {}, {}, cache)
+        return runner._stored(path, column.motion_source, signature)
+
+    assert stored() is None
     path.parent.mkdir(parents=True)
-    stored = runner._signature(column.settings()) + runner.motion_tag(runner.motion_for())
-    path.write_text(json.dumps({"psnr": 30.0, "signature": stored}))
-    assert runner.cached_columns(tmp_path, "family_0000", [column])[0]["psnr"] == 30.0
+    signature = runner._signature(column.settings()) + runner.motion_tag(runner.motion_for())
+    path.write_text(json.dumps({"psnr": 30.0, "signature": signature}))
+    assert stored()["psnr"] == 30.0
     flows["now"] = np.ones((4, 6, 2), np.float32)  # the motion estimated again, otherwise
-    assert runner.cached_columns(tmp_path, "family_0000", [column]) is None
+    assert stored() is None
 
 
 def test_a_columns_signature_names_its_motion_not_the_estimators_settings(runner):
@@ -330,106 +306,3 @@ def test_a_columns_signature_names_its_motion_not_the_estimators_settings(runner
     assert "SceneFlowSettings" not in runner._signature(default.settings())
     paper = runner.Column("paper", "sceneflow", {"alpha": 1e-3})
     assert runner._signature(paper.settings()) != runner._signature(default.settings())
-
-
-def _study(name: str):
-    """The benchmark study ``benchmarks/NAME.py`` as a module (``calibrate_defaults`` loaded)."""
-    spec = importlib.util.spec_from_file_location(name, PATH.with_name(f"{name}.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-@pytest.fixture()
-def curves(runner):
-    return _study("study_alpha_curves")
-
-
-@pytest.fixture()
-def model_error(runner):
-    return _study("study_model_error")
-
-
-def test_the_sharp_domain_score_carries_the_right_view_to_the_left(curves):
-    rng = np.random.default_rng(0)
-    left = rng.random((40, 64))
-    disparity = np.full(left.shape, 3.0)
-    right = np.roll(left, -3, axis=1)  # the right view's pixel u sees the left view's u + 3
-    other = SimpleNamespace(disparity=disparity)
-    views = {
-        "left": {"images": [left + 0.1, left, left[:, ::-1], left + 0.2], "other": other},
-        "right": {"images": [right], "other": other},
-    }
-    distances = curves.sharp_distances(views["left"], views["right"], 3, border=4)
-    assert len(distances) == 3
-    assert distances[1] < 1e-12 < distances[0]
-    assert distances[0] == pytest.approx(0.01)
-    assert distances[2] > 0.05
-
-
-def test_the_studied_rules_read_their_records(curves):
-    grid = list(curves.GRID)
-    record = {
-        "alphas": [2e-4, 3e-4, 1e-3, 3e-3, 1e-4, 3e-5, 1e-5],
-        "sharp": [5.0, 4.0, 3.0, 6.0, 7.0, 8.0, 9.0],
-        "own": [1.0, 2.0, 3.0, 4.0, 0.5, 0.2, 0.1],
-        "errors": [[9.0, e] for e in (2.5, 2.2, 2.4, 2.6, 2.7, 2.8, 3.0)],
-        "changes": [5.0, 4.0, 1.0, 2.0, 3.0],
-    }
-    assert curves.sharpest_agreement(record) == 1e-3
-    assert curves.discrepancy(record) == 3e-4  # the largest residual within 2.2
-    assert curves.quasi_optimal(record) == grid[2]
-    record["own"] = [9.0] * 7
-    assert curves.discrepancy(record) == 1e-5
-
-
-def test_the_replayed_default_stops_its_search_a_decade_above_the_best(curves):
-    record = {  # the floor 5e-5, then the grid above it, then the grid below it
-        "alphas": [5e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-5, 3e-5],
-        "score": [3.0, 2.0, 2.1, 2.5, 1.0, 0.5, 0.5],  # 3e-3 is never solved
-        "own": [1.0, 2.0, 3.0, 4.0, 5.0, 0.5, 0.7],  # none dominated
-        "errors": [[1.0]] * 7,
-        "gate": None,
-    }
-    assert curves.replay_default(record) == 1e-4
-    record["score"][3] = 2.1  # within the stop: 3e-3 is solved and predicts best
-    assert curves.replay_default(record) == 3e-3
-
-
-def test_the_curve_study_replaces_the_pipeline_functions_call_for_call(curves):
-    """Every function the curve study puts in place of the pipeline's takes the arguments the
-    pipeline passes to the original (a changed signature made the study fail, stop 57)."""
-    import inspect
-
-    import stereodeblur.pipeline.frame as frame
-
-    for name, patch in curves.opened_pipeline({}, {}, {"view": None}, None, 0).items():
-        parameters = inspect.signature(getattr(frame, name)).parameters.values()
-        positional = [p.name for p in parameters if p.kind != p.KEYWORD_ONLY]
-        keywords = {p.name: p.name for p in parameters if p.kind == p.KEYWORD_ONLY}
-        inspect.signature(patch).bind(*positional, **keywords)  # raises TypeError if not
-
-
-def test_the_model_error_study_samples_and_counts_as_stated(model_error):
-    rng = np.random.default_rng(0)
-    plane = rng.random((20, 30))
-    y, x = np.mgrid[0:20, 0:30].astype(float)
-    assert np.allclose(model_error.keys_sample(plane, x, y), plane)
-    ramp = 0.1 * x + 0.2 * y  # Keys' kernel reproduces linear functions inside the image
-    inner = (slice(2, -3), slice(2, -3))
-    sampled = model_error.keys_sample(ramp, x + 0.3, y + 0.6)
-    assert np.allclose(sampled[inner], (ramp + 0.03 + 0.12)[inner])
-    instants = [(x, y), (x + 1.0, y)]
-    expected = (plane + np.roll(plane, -1, axis=1)) / 2
-    mean = model_error.gathered([plane], instants, model_error.keys_sample)
-    assert np.allclose(mean[:, :-1], expected[:, :-1])
-
-    mixed = np.zeros((20, 30), bool)
-    mixed[10, 10] = True
-    scene = SimpleNamespace(read_gt_mixed=lambda view, frame: mixed)
-    keep = model_error.kept_pixels(scene, 2, [(x, y), (x + 5.0, y)])
-    assert not keep[:2].any() and not keep[:, -5:].any() and keep[5, 24]  # border, paths out
-    assert not keep[10, 7:14].any() and not keep[7:14, 10].any()  # 3 px from gt/mixed
-    assert keep[10, 6] and keep[5, 5] and keep[15, 20]
-    error = np.full((20, 30), 0.5)
-    assert model_error.misfit(error, np.zeros((20, 30)), keep) == pytest.approx(0.5)
