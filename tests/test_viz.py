@@ -77,3 +77,20 @@ def test_mask_picture_plain_and_tinted():
     np.testing.assert_array_equal(mask_to_image(mask), [[[255] * 3, [0] * 3]])
     tinted = mask_to_image(mask, np.zeros((1, 2)), color=(255, 0, 0), opacity=1.0)
     np.testing.assert_array_equal(tinted, [[[255, 0, 0], [0, 0, 0]]])
+
+
+def test_caption_sits_above_the_unchanged_picture():
+    from stereodeblur.viz import caption_strip, disparity_key, flow_key, with_caption
+
+    picture = disparity_to_color(np.linspace(0.5, 9.0, 48 * 64).reshape(48, 64))
+    lines = ["Disparity, left view.", "Colour: turbo scale from 0 px to 9 px; black: unknown."]
+    out = with_caption(picture, lines, key=disparity_key(9.0, 64))
+    strip = out.shape[0] - picture.shape[0]
+    assert out.shape[1:] == picture.shape[1:] and strip > 30
+    np.testing.assert_array_equal(out[strip:], picture)
+    assert (out[:strip] > 200).all(axis=-1).sum() > 50  # white letters on the dark strip
+    # A narrow picture wraps its caption onto more lines instead of cutting it.
+    assert caption_strip(lines, 64).shape[0] > caption_strip(lines, 640).shape[0]
+    key = flow_key(4.0)
+    np.testing.assert_array_equal(key[20, 20], [255, 255, 255])  # zero flow at the centre
+    assert key[20, 40][0] < 255 * 0.8 and key[20, 40][0] > key[20, 40][2]  # right: dark red

@@ -10,6 +10,9 @@ Every function is pure: it takes arrays and returns an ``(H, W, 3)`` uint8 image
   is black.
 * Disparity uses the "turbo" colour map (Mikhailov 2019, polynomial fit): near
   (large disparity) is red, far is blue; holes (non-finite or <= 0) are black.
+* :func:`with_caption` puts a picture under a strip of text (OpenCV's Hershey font) saying
+  what it shows, with a colour key: :func:`disparity_key` (a bar with its two end values)
+  or :func:`flow_key` (the colour wheel with the length at full colour).
 """
 
 from __future__ import annotations
@@ -178,3 +181,123 @@ def mask_to_image(
     tint = (1 - opacity) * rgb + opacity * np.array(color, dtype=np.float64)
     rgb[mask] = tint[mask]
     return np.rint(rgb).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------- captions
+
+# OpenCV's Hershey simplex font at this scale: capitals about 9 px high, about 6 px per letter.
+CAPTION_SCALE = 0.4
+CAPTION_MARGIN = 4
+_CAPTION_BACKGROUND = (40, 40, 40)
+_CAPTION_TEXT = (255, 255, 255)
+
+
+def _text_size(text: str) -> tuple[int, int, int]:
+    """``(width, height, baseline)`` of ``text`` in the caption font."""
+    import cv2
+
+    (width, height), baseline = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, CAPTION_SCALE, 1)
+    return width, height, baseline
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    """``text`` broken into lines of at most ``width`` pixels (a longer word keeps its line)."""
+    lines: list[str] = []
+    for word in text.split():
+        if lines and _text_size(f"{lines[-1]} {word}")[0] <= width:
+            lines[-1] = f"{lines[-1]} {word}"
+        else:
+            lines.append(word)
+    return lines
+
+
+def _put_text(rgb: np.ndarray, text: str, x: int, top: int) -> None:
+    """Draw ``text`` into ``rgb`` (in place) with its top-left corner at ``(x, top)``."""
+    import cv2
+
+    _, height, _ = _text_size("Hg")
+    cv2.putText(
+        rgb,
+        text,
+        (x, top + height),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        CAPTION_SCALE,
+        _CAPTION_TEXT,
+        1,
+        cv2.LINE_AA,
+    )
+
+
+def caption_strip(lines, width: int, *, key: np.ndarray | None = None) -> np.ndarray:
+    """A dark strip ``width`` pixels wide holding ``lines`` of white text and, below them, a
+    ``key`` picture (a colour scale), as an ``(h, width, 3)`` uint8 image.
+
+    Each line is wrapped to the width; a key wider than the strip is cut at its right edge.
+    """
+    width = int(width)
+    _, height, baseline = _text_size("Hg")
+    step = height + baseline + 3
+    wrapped = [part for line in lines for part in _wrap(line, width - 2 * CAPTION_MARGIN)]
+    key_height = 0 if key is None else key.shape[0] + CAPTION_MARGIN
+    strip = np.empty((2 * CAPTION_MARGIN + step * len(wrapped) + key_height, width, 3), np.uint8)
+    strip[...] = _CAPTION_BACKGROUND
+    for k, line in enumerate(wrapped):
+        _put_text(strip, line, CAPTION_MARGIN, CAPTION_MARGIN + k * step)
+    if key is not None:
+        top = CAPTION_MARGIN + step * len(wrapped)
+        shown = _to_rgb_u8(key)[:, : max(width - 2 * CAPTION_MARGIN, 0)]
+        strip[top : top + shown.shape[0], CAPTION_MARGIN : CAPTION_MARGIN + shown.shape[1]] = shown
+    return strip
+
+
+def with_caption(picture: np.ndarray, lines, *, key: np.ndarray | None = None) -> np.ndarray:
+    """``picture`` (grey or RGB) below a :func:`caption_strip` of its width: the picture's
+    pixels unchanged, ``(strip height + H, W, 3)`` uint8."""
+    rgb = _to_rgb_u8(picture)
+    return np.concatenate([caption_strip(lines, rgb.shape[1], key=key), rgb], axis=0)
+
+
+def disparity_key(max_disparity: float, width: int, *, min_disparity: float = 0.0) -> np.ndarray:
+    """The colour scale of :func:`disparity_to_color`: a bar from ``min_disparity`` (left) to
+    ``max_disparity`` (right), at most ``width`` (and 256) pixels long, with the two values in
+    pixels written under its ends."""
+    length = int(max(min(width, 256), 2))
+    values = np.linspace(min_disparity, max_disparity, length)
+    # Zero and below is a hole for disparity_to_color: start the bar just above it.
+    values[0] = max(values[0], 1e-9 * max(abs(max_disparity), 1.0))
+    bar = disparity_to_color(
+        np.repeat(values[None], 10, axis=0),
+        max_disparity=max_disparity,
+        min_disparity=min_disparity,
+    )
+    low, high = f"{min_disparity:.3g} px (far)", f"{max_disparity:.3g} px (near)"
+    _, height, baseline = _text_size("Hg")
+    low_width, high_width = _text_size(low)[0], _text_size(high)[0]
+    key_width = max(length, low_width + 6 + high_width)
+    key = np.empty((bar.shape[0] + 2 + height + baseline, key_width, 3), np.uint8)
+    key[...] = _CAPTION_BACKGROUND
+    key[: bar.shape[0], :length] = bar
+    _put_text(key, low, 0, bar.shape[0] + 2)
+    _put_text(key, high, max(length, key_width) - high_width, bar.shape[0] + 2)
+    return key
+
+
+def flow_key(max_flow: float, *, size: int = 41) -> np.ndarray:
+    """The colour wheel of :func:`flow_to_color` at ``max_flow``: each pixel of a ``size`` x
+    ``size`` square shows the flow from the square's centre to it, scaled so that the grey
+    circle is ``max_flow`` long (white at the centre, full colour on the circle, darker
+    beyond), with the length of the circle written beside it."""
+    half = (size - 1) / 2
+    reach = 1.25  # the square's half side, in units of max_flow
+    y, x = np.mgrid[0:size, 0:size].astype(np.float64)
+    flow = np.stack([x - half, y - half], axis=-1) / half * reach * max_flow
+    wheel = flow_to_color(flow, max_flow=max_flow)
+    radius = np.hypot(x - half, y - half) / half * reach
+    wheel[np.abs(radius - 1.0) < 0.5 * reach / half] = 128
+    label = f"circle: {max_flow:.3g} px"
+    _, height, _ = _text_size(label)
+    key = np.empty((size, size + 6 + _text_size(label)[0], 3), np.uint8)
+    key[...] = _CAPTION_BACKGROUND
+    key[:, :size] = wheel
+    _put_text(key, label, size + 6, (size - height) // 2)
+    return key

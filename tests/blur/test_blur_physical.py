@@ -28,7 +28,7 @@ def test_operator_reproduces_rendered_blur(name, view):
         np.zeros((H, W), bool),
         view=view,
     )
-    A = homography_blur(sf, scene.exposure, num_samples=70)
+    A = homography_blur(sf, scene.exposure, num_samples=70, interpolation="bilinear")
     predicted = A.forward(scene.sharp[view][frame])
     border = 8
     err = np.abs(predicted - scene.frames[view][frame])[border:-border, border:-border]

@@ -58,8 +58,9 @@ def test_uncovered_pixels_get_the_identity():
     flow = _diverging_flow()
     # Backward flow equal to the forward one: content moves away from the centre
     # at every instant. With N = 2 the samples are at |s| = tau / 4 (1.9 px).
-    op = displacement_blur(flow, flow, EXPOSURE, num_samples=2)
-    ref = displacement_blur_reference(flow, flow, EXPOSURE, num_samples=2)
+    bilinear = {"num_samples": 2, "interpolation": "bilinear"}
+    op = displacement_blur(flow, flow, EXPOSURE, **bilinear)
+    ref = displacement_blur_reference(flow, flow, EXPOSURE, **bilinear)
     assert abs(op.matrix - ref.matrix).max() < 1e-6
     middle = SHAPE[1] // 2
     for y in (0, 17, SHAPE[0] - 1):
@@ -79,8 +80,8 @@ def test_constant_flow_equals_homography_of_translation():
     focal = scene.camera.K[[0, 1], [0, 1]]
     flow = np.broadcast_to(focal * np.asarray(velocity) / depth, SHAPE + (2,))
     np.testing.assert_allclose(scene.flow(), flow, atol=1e-9)
-    disp = displacement_blur(flow, -flow, EXPOSURE).matrix
-    hom = homography_blur(scene, EXPOSURE).matrix
+    disp = displacement_blur(flow, -flow, EXPOSURE, interpolation="bilinear").matrix
+    hom = homography_blur(scene, EXPOSURE, interpolation="bilinear").matrix
     diff = abs(disp - hom)
     reach = int(np.ceil(EXPOSURE.duty_cycle / 2 * np.abs(flow[0, 0]).max())) + 1
     y, x = np.divmod(np.arange(disp.shape[0]), SHAPE[1])
@@ -111,6 +112,7 @@ def test_backward_flow_is_used_before_the_frame_centre():
         np.broadcast_to(backward, SHAPE + (2,)),
         EXPOSURE,
         num_samples=10,
+        interpolation="bilinear",
     )
     image = np.random.default_rng(3).random(SHAPE)
     expected = np.zeros(SHAPE)
@@ -135,7 +137,7 @@ def test_kernels_collect_sources_whose_lines_pass_through():
         axis=-1,
     )
     fractions = EXPOSURE.sample_fractions(20)
-    op = displacement_blur(flow, -flow, EXPOSURE, num_samples=20)
+    op = displacement_blur(flow, -flow, EXPOSURE, num_samples=20, interpolation="bilinear")
     # Positions of every in-image source at every instant, (HW, S, 2).
     src = np.stack([x, y], -1).reshape(-1, 1, 2)
     positions = src + fractions[None, :, None] * flow.reshape(-1, 1, 2)

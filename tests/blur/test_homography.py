@@ -16,8 +16,8 @@ SHAPE = (40, 56)
 @pytest.mark.parametrize("seed", [0, 1])
 def test_sparse_equals_numpy_reference(view, seed):
     scene = random_sceneflow(SHAPE, seed, view=view, grid=(3, 4), speed=2.0)
-    fast = homography_blur(scene, EXPOSURE).matrix
-    slow = homography_blur_reference(scene, EXPOSURE).matrix
+    fast = homography_blur(scene, EXPOSURE, interpolation="bilinear").matrix
+    slow = homography_blur_reference(scene, EXPOSURE, interpolation="bilinear").matrix
     np.testing.assert_array_equal(fast.indptr, slow.indptr)
     np.testing.assert_array_equal(fast.indices, slow.indices)
     np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)
@@ -51,7 +51,9 @@ def test_fronto_parallel_translation_matches_ndimage_shift(velocity, offset):
     depth = 3.0
     scene = translation_sceneflow(SHAPE, velocity, depth)
     num_samples = 15
-    op = homography_blur(scene, EXPOSURE, num_samples=num_samples, offset=offset)
+    op = homography_blur(
+        scene, EXPOSURE, num_samples=num_samples, offset=offset, interpolation="bilinear"
+    )
     image = np.random.default_rng(0).random(SHAPE)
     focal = scene.camera.K[[0, 1], [0, 1]]
     expected = np.zeros(SHAPE)
@@ -103,7 +105,9 @@ def test_rows_follow_projected_3d_trajectories(view):
     tracked = _tracked_reference_positions(scene, fractions)
     y, x = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]].astype(np.float64)
     ramp = np.stack([x, y], axis=-1)  # channel 0: x, channel 1: y
-    blurred = homography_blur(scene, EXPOSURE, num_samples=num_samples).forward(ramp)
+    blurred = homography_blur(
+        scene, EXPOSURE, num_samples=num_samples, interpolation="bilinear"
+    ).forward(ramp)
     expected = tracked.mean(axis=0)
     inside = np.all((tracked >= 0) & (tracked <= [SHAPE[1] - 1, SHAPE[0] - 1]), axis=(0, 3))
     assert inside.mean() > 0.6
@@ -128,7 +132,7 @@ def test_cubic_sparse_equals_numpy_reference(seed, offset):
     np.testing.assert_array_equal(fast.indices, slow.indices)
     np.testing.assert_allclose(fast.data, slow.data, rtol=0, atol=1e-6)
     np.testing.assert_allclose(fast.sum(axis=1), 1.0, atol=1e-5)
-    assert fast.nnz > 1.5 * homography_blur(scene, EXPOSURE).matrix.nnz
+    assert fast.nnz > 1.5 * homography_blur(scene, EXPOSURE, interpolation="bilinear").matrix.nnz
 
 
 def test_cubic_huge_blur_takes_the_sorted_path():

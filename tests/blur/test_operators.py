@@ -18,7 +18,7 @@ SHAPE = (40, 56)
 def _homography(view, exposure=EXPOSURE, speed=1.0, seed=1, layered=False):
     scene = random_sceneflow(SHAPE, seed, view=view, speed=speed)
     visible = sceneflow_visibility(scene, exposure, 70) if layered else None
-    return homography_blur(scene, exposure, visible=visible)
+    return homography_blur(scene, exposure, visible=visible, interpolation="bilinear")
 
 
 def _displacement(backward, exposure=EXPOSURE, speed=1.0, seed=2):
@@ -28,7 +28,7 @@ def _displacement(backward, exposure=EXPOSURE, speed=1.0, seed=2):
         if backward == "mirrored"
         else speed * smooth_flow(SHAPE, seed + 100, amplitude=8.0)
     )
-    return displacement_blur(forward, back, exposure)
+    return displacement_blur(forward, back, exposure, interpolation="bilinear")
 
 
 REGISTRY = {

@@ -18,7 +18,7 @@ def test_sceneflow_output_inside_the_scene_is_refused(tiny_scene, capsys, inside
     existed = out.exists()
     line = refused(
         capsys,
-        ["sceneflow", tiny_scene, "--frame", "1", "-o", out, "-q"],
+        ["sceneflow", tiny_scene, "--frames", "1", "-o", out, "-q"],
         inputs=[tiny_scene],
         outputs=[] if existed else [out],
         fragments=[str(out)],
@@ -29,17 +29,14 @@ def test_sceneflow_output_inside_the_scene_is_refused(tiny_scene, capsys, inside
 def test_sceneflow_output_through_a_symlink_into_the_scene_is_refused(tiny_scene, tmp_path, capsys):
     link = tmp_path / "link"
     link.symlink_to(tiny_scene / "gt")
-    argv = ["sceneflow", tiny_scene, "--frame", "1", "-o", link, "-q"]
+    argv = ["sceneflow", tiny_scene, "--frames", "1", "-o", link, "-q"]
     refused(capsys, argv, inputs=[tiny_scene], fragments=["link", "input"])
 
 
 def test_sceneflow_frame_out_of_range_names_the_option_and_the_range(tiny_scene, tmp_path, capsys):
     out = tmp_path / "sf"
-    argv = ["sceneflow", tiny_scene, "--frame", "99", "-o", out]
-    line = refused(
-        capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=["--frame 99", "0..2"]
-    )
-    assert "--frames" not in line
+    argv = ["sceneflow", tiny_scene, "--frames", "99", "-o", out]
+    refused(capsys, argv, inputs=[tiny_scene], outputs=[out], fragments=["--frames '99'", "0..2"])
 
 
 @pytest.mark.parametrize("kind", ["camera.json", "junk.npz", "text.npz"])
@@ -147,7 +144,7 @@ def test_deblur_output_whose_left_folder_links_into_the_input_is_refused(tmp_pat
 def test_output_through_a_dangling_symlink_is_refused(tiny_scene, tmp_path, capsys):
     out = tmp_path / "out"
     out.symlink_to(tmp_path / "nowhere")
-    argv = ["sceneflow", tiny_scene, "--frame", "1", "-o", out]
+    argv = ["sceneflow", tiny_scene, "--frames", "1", "-o", out]
     refused(capsys, argv, inputs=[tiny_scene], fragments=["out", "does not exist"])
     assert not (tmp_path / "nowhere").exists()
 

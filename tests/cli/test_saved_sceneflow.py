@@ -11,7 +11,7 @@ def test_saved_sceneflow_gives_the_same_frame_as_estimating(tmp_path, capsys):
     root = tmp_path / "scene"
     write_rendered_scene(make_planar_scene("yaw", size=(96, 72), num_samples=32), root)
     flow_dir = tmp_path / "sf"
-    assert main(["sceneflow", str(root), "--frame", "1", "-o", str(flow_dir), "-q"]) == 0
+    assert main(["sceneflow", str(root), "--frames", "1", "-o", str(flow_dir), "-q"]) == 0
     saved = flow_dir / "sceneflow" / "000001.npz"
     assert saved.is_file()
     common = ["--frames", "1", "--views", "left", "--irls", "2", "--cg", "5", "-q"]

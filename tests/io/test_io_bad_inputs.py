@@ -1,4 +1,4 @@
-"""Bad inputs found by hand (issue 15): each a one-line error naming the file or value and the
+"""Bad inputs: each a one-line error naming the file or value and the
 accepted range, exit code 2 from the command line, nothing else on the terminal."""
 
 import hashlib

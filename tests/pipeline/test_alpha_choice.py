@@ -146,7 +146,7 @@ def test_the_own_error_is_the_views_own_frame_predicted_off_the_border():
 
 def test_a_candidate_a_larger_alpha_fits_as_well_is_dropped():
     alphas = (2e-5, 3e-5, 1e-4, 3e-4, 1e-3)
-    # family_1055 (640x480, true motion): the own frame fits best at 1e-4, the floor rings
+    # a noiseless striped frame: the own frame fits best at 1e-4, the floor's solve rings
     assert undominated(alphas, (15.0, 10.2, 7.2, 13.4, 42.1)) == [2, 3, 4]
     assert undominated(alphas, (1.0, 2.0, 3.0, 4.0, 5.0)) == [0, 1, 2, 3, 4]  # the usual
     assert undominated(alphas, (2.0, 2.0, 3.0, 1.0, 5.0)) == [3, 4]  # a tie is dominated
@@ -192,11 +192,11 @@ def test_held_out_searches_past_a_bump_and_stops_at_a_rise_a_decade_up():
     assert HELD_OUT_TIE < 0.5 * HELD_OUT_STOP
     decade = (1e-4, 3e-4, 1e-3, 3e-3)
     assert not searched("held-out", [1.0], decade[:1])
-    assert not searched("held-out", [1.0, bump], decade[:2])  # family_1032's 7.6 % bump
+    assert not searched("held-out", [1.0, bump], decade[:2])  # a small bump: search on
     assert not searched("held-out", [1.0, bump, 0.5], decade[:3])
     assert searched("held-out", [1.0, rise, rise], decade[:3])
     assert searched("held-out", [1.0, bump, 0.5, 0.5 * rise], (1e-5, 3e-5, 1e-4, 1e-3))
-    # a rise within a decade of the best: not yet (family_1060: 2.1e-5 and 3e-5 ring)
+    # a rise within a decade of the best: not yet (the best and the next may both ring)
     assert not searched("held-out", [1.0, rise], decade[:2])
     assert not searched("held-out", [1.0, rise, rise], (2.1e-5, 3e-5, 1e-4))
     assert searched("held-out", [1.0, rise, rise, rise], (2.1e-5, 3e-5, 1e-4, 3e-4))

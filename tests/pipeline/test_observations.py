@@ -1,4 +1,4 @@
-"""Further observations of a view: the other view and the neighbouring frames (issue 13)."""
+"""Further observations of a view: the other view and the neighbouring frames."""
 
 from dataclasses import replace
 

@@ -1,4 +1,4 @@
-"""Scene flow on a driving scene: the camera's motion must win the road (issue 12).
+"""Scene flow on a driving scene: the camera's motion must win the road.
 
 A flat, weakly textured road with hard shadows between a hedge and a wall, the camera
 moving forward by 60 px per frame at the bottom of the image, blurred frames, frame
@@ -78,7 +78,8 @@ def test_blurred_fast_road_with_a_gain_change():
     # 80 px at the bottom, blur over half the frame interval, 40 % brighter at t + 1, half
     # the texture. The fused motion is right (0.03 %) and the first refinement keeps it;
     # the blur-balanced second refinement (no prior) takes it 1.9 % slow: 1.3 px on the
-    # road. Without balancing 0.40 px, but fast_approach needs it (results/README.md, scene flow).
+    # road. Without balancing 0.40 px, but the planar scene fast_approach needs the balancing
+    # (docs/defaults.md#blur-balancing).
     pair = driving_pair(
         (320, 240), bottom_flow=80.0, duty_cycle=0.5, gain=1.4, road_contrast=0.015, num_samples=8
     )

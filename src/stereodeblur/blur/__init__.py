@@ -1,11 +1,14 @@
 """Blur operators: the exposure integral of the paper's Eq. 3-4 as a sparse matrix.
 
 Start at :func:`homography_blur` (Eq. 3): the blur of one view under piecewise-rigid scene
-flow, each row the mean of ``N = 70`` bilinear samples of the sharp image along the pixel's
-trajectory. It returns a :class:`SparseBlur` (``forward`` = ``A I``, ``adjoint`` =
-``A^T B``, ``gram`` = ``A^T W^2 A I`` in one pass over the matrix), the operator that
-:func:`stereodeblur.deconv.deblur_irls` inverts. :func:`displacement_blur` builds the same
-kind of operator from 2D flow, and :mod:`.trajectories` holds the sampling rules both share.
+flow, each row the mean of ``N = 70`` samples of the sharp image along the pixel's trajectory,
+each interpolated by Keys' cubic convolution (``interpolation='cubic'``, the default of the
+builders, of :class:`~stereodeblur.settings.DeblurSettings` and of the command line) or
+bilinearly as in the paper (``interpolation='bilinear'``). It returns a :class:`SparseBlur`
+(``forward`` = ``A I``, ``adjoint`` = ``A^T B``, ``gram`` = ``A^T W^2 A I`` in one pass over
+the matrix), the operator that :func:`stereodeblur.deconv.deblur_irls` inverts.
+:func:`displacement_blur` builds the same kind of operator from 2D flow, and
+:mod:`.trajectories` holds the sampling rules both share.
 
 Names are imported on first use, so importing this package does not load numba.
 """

@@ -16,7 +16,7 @@ Parallelism: every kernel is a serial numba function that releases the GIL
 results are joined in order. Compared with ``prange`` this compiles several
 times faster and, as its idle threads block instead of spinning, it does not
 collapse when the machine is oversubscribed (an OpenMP ``prange`` matrix
-product was ten times slower than a serial one on a loaded 2-core machine).
+product can be ten times slower than a serial one on a loaded 2-core machine).
 """
 
 from __future__ import annotations

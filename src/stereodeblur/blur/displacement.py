@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from ..geometry.camera import Exposure
-from ..settings import NUM_SAMPLES
+from ..settings import DEFAULT_INTERPOLATION, NUM_SAMPLES
 from . import _kernels
 from .homography import _check_num_samples, csr_from_arrays
 from .operator import SparseBlur
@@ -73,7 +73,7 @@ def displacement_blur(
     *,
     num_samples: int = NUM_SAMPLES,
     rows: np.ndarray | None = None,
-    interpolation: str = "bilinear",
+    interpolation: str = DEFAULT_INTERPOLATION,
 ) -> SparseBlur:
     """Blur operator from 2D displacements by forward warping (Kim & Lee 2015).
 
@@ -91,6 +91,11 @@ def displacement_blur(
     rows : ndarray of bool, shape (H, W), optional
         Build only the rows of these blurred pixels (equal to the full operator's); the
         other rows are empty. Default: all rows.
+    interpolation : {'bilinear', 'cubic'}, optional
+        How the content is splatted: bilinearly onto four pixels or by Keys' cubic weights
+        onto sixteen (:mod:`.trajectories`). Default:
+        ``settings.DEFAULT_INTERPOLATION`` (``'cubic'``), as
+        :class:`~stereodeblur.settings.DeblurSettings` and the command line.
 
     Returns
     -------
@@ -128,7 +133,7 @@ def displacement_blur_reference(
     exposure: Exposure,
     *,
     num_samples: int = NUM_SAMPLES,
-    interpolation: str = "bilinear",
+    interpolation: str = DEFAULT_INTERPOLATION,
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`displacement_blur`.
 

@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from ..geometry.camera import Exposure
 from ..sceneflow.model import SceneFlow
-from ..settings import NUM_SAMPLES
+from ..settings import DEFAULT_INTERPOLATION, NUM_SAMPLES
 from . import _kernels
 from .operator import SparseBlur
 from .trajectories import bilinear_taps, cubic_taps, homography_positions, is_cubic
@@ -81,7 +81,7 @@ def homography_blur(
     num_samples: int = NUM_SAMPLES,
     visible=None,
     substitute: tuple[SparseBlur, np.ndarray] | None = None,
-    interpolation: str = "bilinear",
+    interpolation: str = DEFAULT_INTERPOLATION,
     offset: float = 0.0,
 ) -> SparseBlur:
     """Blur operator of the reference view of ``sceneflow`` (paper Eq. 3-4).
@@ -105,7 +105,9 @@ def homography_blur(
         (:func:`~stereodeblur.blur.operator.merge_rows` of the two, built once).
     interpolation : {'bilinear', 'cubic'}, optional
         How the sharp image is sampled at the positions: bilinear (the paper) or Keys'
-        cubic convolution (:mod:`.trajectories`; about 2.5x the entries).
+        cubic convolution (:mod:`.trajectories`; about 2.5x the entries). Default:
+        ``settings.DEFAULT_INTERPOLATION`` (``'cubic'``), as
+        :class:`~stereodeblur.settings.DeblurSettings` and the command line.
     offset : float, optional
         Frame intervals between the reference instant and the exposure's centre: with
         ``offset = 1`` the rows are the next frame's blurred pixels, gathered from the
@@ -137,7 +139,7 @@ def homography_blur_reference(
     *,
     num_samples: int = NUM_SAMPLES,
     visible=None,
-    interpolation: str = "bilinear",
+    interpolation: str = DEFAULT_INTERPOLATION,
     offset: float = 0.0,
 ) -> SparseBlur:
     """Pure-numpy, slow construction of the same operator as :func:`homography_blur`.

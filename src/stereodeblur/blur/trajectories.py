@@ -37,8 +37,8 @@ Cubic weights (``interpolation='cubic'``, both operators): Keys' cubic convoluti
 (a = -0.5) over the sixteen taps ``x0 - 1 .. x0 + 2`` by ``y0 - 1 .. y0 + 2``, with the same
 snapping; gathering clamps each tap coordinate to the image (replicate edge), splatting drops
 the taps outside it. It interpolates the sharp image with third-order accuracy instead of
-bilinear interpolation's smoothing, which on noiseless frames was the largest part of the
-model's error.
+bilinear interpolation's smoothing, which on noiseless frames is the largest part of the
+bilinear operator's model error (``docs/defaults.md#interpolation``).
 
 Border rule (shared by both operators)
 --------------------------------------

@@ -19,7 +19,14 @@ MAX_SIDE = 8192
 
 
 class Parser(argparse.ArgumentParser):
-    """``argparse`` parser whose errors are one line with exit code 2."""
+    """``argparse`` parser whose errors are one line with exit code 2.
+
+    Options are matched by their whole name only (no abbreviations): a prefix such as
+    ``--frame`` is not silently taken for ``--frames``.
+    """
+
+    def __init__(self, *args, allow_abbrev: bool = False, **kwargs):
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)
 
     def error(self, message):
         self.exit(EXIT_USAGE, f"stereodeblur: error: {message}\n")
@@ -27,7 +34,12 @@ class Parser(argparse.ArgumentParser):
 
 def add_quiet(parser: argparse.ArgumentParser) -> None:
     """``-q/--quiet``: no progress lines on stderr."""
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    parser.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="print no progress lines on stderr; warnings and errors still show (default: off)",
+    )
 
 
 def size(text: str) -> tuple[int, int]:

@@ -38,7 +38,11 @@ def _add_planar(bench) -> None:
     )
     add_sizes(q, planar_bench.SIZES)
     q.add_argument("--scenes", type=names, help="comma-separated motion names (default: all)")
-    q.add_argument("--work", default="bench-planar", help="folder for rendered scenes and results")
+    q.add_argument(
+        "--work",
+        default="bench-planar",
+        help="folder for rendered scenes and results (default: %(default)s)",
+    )
     add_quiet(q)
     q.set_defaults(func=run_planar)
 
@@ -58,13 +62,24 @@ def _add_sceneflow(bench) -> None:
         "variant (default: every planar motion and noiseless object scene)",
     )
     q.add_argument(
-        "--frame",
+        "--frames",
+        dest="frame",
         type=integer(0),
+        metavar="I",
         default=sceneflow_bench.FRAME,
-        help="frame whose motion is estimated",
+        help="the frame whose scene flow is measured in every scene, one frame number "
+        "(default: %(default)s)",
     )
-    q.add_argument("--work", default="bench-sceneflow", help="folder for scenes and results")
-    q.add_argument("--no-motorcycle", action="store_true", help="skip the motorcycle check")
+    q.add_argument(
+        "--work",
+        default="bench-sceneflow",
+        help="folder for scenes and results (default: %(default)s)",
+    )
+    q.add_argument(
+        "--no-motorcycle",
+        action="store_true",
+        help="skip the motorcycle check (default: off: the check runs)",
+    )
     add_quiet(q)
     q.set_defaults(func=run_sceneflow)
 
@@ -76,7 +91,8 @@ def _add_paper(bench) -> None:
         description="Deblur frame 1 of every scene with each column of the paper's Tables 2-4 "
         "(gt 2D displacement, initial optical flow, 2D projection of the scene flow, "
         "3D homographies, paper full, ours full); PSNR, SSIM, AEP, ADE as Markdown and JSON, "
-        "a figure per scene. Resumable: results are cached in the work folder.",
+        "a figure per scene. Resumable: results are cached in the work folder. The paper's "
+        "columns run the paper's IRLS and CG counts unless --irls or --cg is given.",
     )
     add_size(q, paper_bench.SIZE)
     q.add_argument(
@@ -84,17 +100,28 @@ def _add_paper(bench) -> None:
         type=names,
         help="comma-separated scene names, NAME or NAME_noisy (default: all)",
     )
-    q.add_argument("--work", default="bench-paper", help="folder for scenes, cache and results")
     q.add_argument(
-        "--alpha-sweep", action="store_true", help="also run ours (full) at 5 fixed alphas"
+        "--work",
+        default="bench-paper",
+        help="folder for scenes, cache and results (default: %(default)s)",
     )
-    q.add_argument("--no-masked", action="store_true", help="skip Table 2 (gt-masked columns)")
+    q.add_argument(
+        "--alpha-sweep",
+        action="store_true",
+        help="also run ours (full) at 5 fixed alphas (default: off)",
+    )
+    q.add_argument(
+        "--no-masked",
+        action="store_true",
+        help="skip Table 2, the gt-masked columns (default: off: Table 2 runs)",
+    )
     add_settings_options(q, ("num_samples", "num_irls", "num_cg", "num_segments"))
     q.add_argument(
         "--render-samples",
         type=integer(*RENDER_SAMPLES),
         default=paper_bench.RENDER_SAMPLES,
-        help="instants averaged per rendered frame",
+        help=f"instants averaged per rendered frame, {RENDER_SAMPLES[0]}..{RENDER_SAMPLES[1]} "
+        "(default: %(default)s)",
     )
     add_quiet(q)
     q.set_defaults(func=run_paper)

@@ -9,7 +9,15 @@ from ..errors import InputError
 from .base import EXIT_USAGE, add_quiet, integer
 from .printer import print_warnings, progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
-from .sources import add_source_options, input_paths, open_source, source_spec
+from .sources import (
+    add_frames_option,
+    add_source_argument,
+    add_source_options,
+    input_paths,
+    open_source,
+    select_frames,
+    source_spec,
+)
 
 VIEWS = {"left": ("left",), "right": ("right",), "both": ("left", "right")}
 
@@ -21,30 +29,35 @@ def add_parser(sub) -> None:
         description="Deblur frames of a scene folder (stereo-video/1 format), a KITTI folder "
         "or a video pair and write them as a scene.",
     )
-    p.add_argument(
-        "source",
-        nargs="+",
-        help="input: a scene folder, a KITTI folder, or two videos LEFT RIGHT (with --calib)",
-    )
+    add_source_argument(p)
     p.add_argument("-o", "--output", required=True, help="output scene folder")
-    p.add_argument("--frames", help="frames to deblur: '1,3', '10:200' (default: all)")
-    p.add_argument("--views", choices=list(VIEWS), default="both")
+    add_frames_option(p, "to deblur")
+    p.add_argument(
+        "--views",
+        choices=list(VIEWS),
+        default="both",
+        help="views to deblur and write (default: %(default)s)",
+    )
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="deblur finished frames again; allow writing into a folder of another scene",
+        help="deblur again the frames the output already holds, and write into a folder that "
+        "holds other files or an earlier 'deblur' output of another input, other settings or "
+        "another camera; never into an input nor into another scene (camera.json and frames "
+        "not written by 'deblur') (default: off: finished frames are skipped and such "
+        "folders refused)",
     )
     add_quiet(p)
     p.add_argument(
         "--sceneflow",
         metavar="FILE",
         help="reuse a scene flow saved by 'stereodeblur sceneflow' (OUT/sceneflow/NNNNNN.npz) "
-        "for the one frame given with --frames",
+        "for the one frame given with --frames (default: none: the scene flow is estimated)",
     )
     p.add_argument(
         "--point-cloud",
         action="store_true",
-        help="also write a coloured PLY per frame (OUT/pointcloud/VIEW/NNNNNN.ply)",
+        help="also write a coloured PLY per frame (OUT/pointcloud/VIEW/NNNNNN.ply) (default: off)",
     )
     r = p.add_argument_group("running")
     r.add_argument(
@@ -54,8 +67,10 @@ def add_parser(sub) -> None:
     )
     r.add_argument(
         "--scheduler",
+        metavar="ADDRESS",
         help="address of a Dask distributed scheduler, tcp://HOST:PORT (needs stereodeblur[dask]); "
-        "input and output paths must be shared with its workers",
+        "input and output paths must be shared with its workers (default: none: run on this "
+        "machine)",
     )
     add_source_options(p)
     add_settings_options(p)
@@ -65,16 +80,6 @@ def add_parser(sub) -> None:
 def views_of(args: argparse.Namespace) -> tuple[str, ...]:
     """The views ``--views`` selects."""
     return VIEWS[args.views]
-
-
-def select_frames(text: str | None, num_frames: int):
-    """``--frames`` checked against the clip (before the selection is expanded)."""
-    from ..clip.frames import parse_frames
-
-    try:
-        return parse_frames(text, num_frames)
-    except InputError as err:
-        raise InputError(f"--{err}") from None
 
 
 def run(args: argparse.Namespace) -> int:

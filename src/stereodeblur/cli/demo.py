@@ -18,7 +18,12 @@ def add_parser(sub) -> None:
         description="Render a built-in blurred stereo scene, deblur it and write "
         "blurred | deblurred | sharp as a PNG; prints the PSNRs.",
     )
-    p.add_argument("-o", "--output", default="stereodeblur-demo", help="output folder")
+    p.add_argument(
+        "-o",
+        "--output",
+        default="stereodeblur-demo",
+        help="output folder, in the working folder by default (default: %(default)s)",
+    )
     add_size(p, DEMO_SIZE)
     add_quiet(p)
     p.set_defaults(func=run)

@@ -30,20 +30,29 @@ def add_parser(sub) -> None:
         "moved by --shift and turned by --rotate; '--colors both' puts deblurred and blurred "
         "colours side by side.",
     )
-    p.add_argument("cloud", help="PLY file")
+    p.add_argument("cloud", help="PLY file written by 'deblur --point-cloud'")
     p.add_argument("-o", "--output", required=True, help="output PNG")
     p.add_argument(
-        "--shift", type=vector3, default="0,0,0", help="camera centre X,Y,Z in scene units"
+        "--shift",
+        type=vector3,
+        default="0,0,0",
+        metavar="X,Y,Z",
+        help="camera centre in scene units (default: %(default)s: the frame's camera)",
     )
     p.add_argument(
-        "--rotate", type=vector3, default="0,0,0", help="camera rotation vector in degrees"
+        "--rotate",
+        type=vector3,
+        default="0,0,0",
+        metavar="X,Y,Z",
+        help="camera rotation vector in degrees (default: %(default)s: no rotation)",
     )
     p.add_argument(
         "--colors",
         choices=["deblurred", "blurred", "both"],
-        help="which colours (default: both side by side when the cloud has blurred ones)",
+        help="which colours (default: both side by side when the cloud has blurred ones, "
+        "else deblurred)",
     )
-    p.add_argument("--size", type=size, help="WIDTHxHEIGHT (default: the frame's)")
+    p.add_argument("--size", type=size, help="WIDTHxHEIGHT of the picture (default: the frame's)")
     p.add_argument(
         "--focal", type=positive_number, help="focal length in pixels (default: the frame's)"
     )

@@ -1,13 +1,22 @@
-"""``stereodeblur sceneflow``: estimate and write the scene flow of one frame."""
+"""``stereodeblur sceneflow``: estimate and write the scene flow of frames of a clip."""
 
 from __future__ import annotations
 
 import argparse
 
 from ..errors import InputError
-from .base import add_quiet, integer
-from .printer import progress_printer
-from .settings_options import SEGMENTS
+from .base import add_quiet
+from .printer import print_warnings, progress_printer
+from .settings_options import add_settings_options, settings_from_arguments
+from .sources import (
+    add_frames_option,
+    add_source_argument,
+    add_source_options,
+    input_paths,
+    open_source,
+    select_frames,
+    source_spec,
+)
 
 # What the command writes under OUT (the layout of a scene's gt/ folder).
 SUBFOLDERS = ("disparity", "flow", "occlusion", "sceneflow")
@@ -16,51 +25,64 @@ SUBFOLDERS = ("disparity", "flow", "occlusion", "sceneflow")
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "sceneflow",
-        help="estimate the piecewise-rigid scene flow of a frame",
-        description="Estimate planes, rigid motions and occlusion of a frame "
-        "(towards the next frame) and write them in the layout of a scene's gt/.",
+        help="estimate the piecewise-rigid scene flow of frames",
+        description="Estimate planes, rigid motions and occlusion of the left view of each "
+        "frame (towards the next frame; the last frame towards the previous one) and write "
+        "them in the layout of a scene's gt/, one file of each kind per frame. Reads every "
+        "source 'deblur' reads.",
     )
-    p.add_argument("scene", help="input scene folder")
-    p.add_argument("--frame", type=integer(0), required=True, help="frame index")
+    add_source_argument(p)
     p.add_argument("-o", "--output", required=True, help="output folder")
+    add_frames_option(p, "whose scene flow is estimated")
     p.add_argument(
-        "--segments",
-        type=integer(*SEGMENTS),
-        default=None,
-        help="superpixels (default: 1200 at 640x480, scaled with area)",
+        "--debug-dir",
+        metavar="DIR",
+        help="also write captioned pictures of the segments, disparity, flow and occlusion of "
+        "each frame into DIR/NNNNNN/ (default: none)",
     )
-    p.add_argument("--debug-dir", help="write pictures of segments, disparity, flow, occlusion")
     add_quiet(p)
+    add_source_options(p, require_exposure=False)
+    add_settings_options(p, ("num_segments",), title="scene flow")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    import warnings
+    from pathlib import Path
+
     from ..io.outputs import check_output
-    from ..io.scene import open_scene
     from ..pipeline import neighbour_of
-    from ..sceneflow.estimate import estimate_scene_flow
+    from ..sceneflow.estimate import SceneFlowWarning, estimate_scene_flow
     from ..sceneflow.storage import write_sceneflow_outputs
 
-    scene = open_scene(args.scene)
-    index = args.frame
-    if not 0 <= index < scene.num_frames:
-        raise InputError(f"--frame {index}: {scene.root} has frames 0..{scene.num_frames - 1}")
-    check_output(args.output, [scene.root], subfolders=SUBFOLDERS, command="sceneflow")
+    settings = settings_from_arguments(args)
+    spec = source_spec(args, require_exposure=False)
+    source = open_source(spec)
+    if source.num_frames < 2:
+        raise InputError(f"{source.root}: the scene flow needs two frames, the clip has one")
+    frames = select_frames(args.frames, source.num_frames)
+    protect = input_paths(spec)
+    check_output(args.output, protect, subfolders=SUBFOLDERS, command="sceneflow")
     if args.debug_dir is not None:
-        check_output(args.debug_dir, [scene.root], command="sceneflow")
-    neighbour = neighbour_of(index, scene.num_frames)
-    frames = [scene.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
+        check_output(args.debug_dir, protect, command="sceneflow")
     progress = progress_printer(args.quiet)
-    estimate = estimate_scene_flow(
-        *frames,
-        scene.info.camera,
-        num_segments=args.segments,
-        exposure=scene.info.exposure,
-        progress=progress,
-        debug_dir=args.debug_dir,
-    )
-    written = write_sceneflow_outputs(args.output, estimate.sceneflow, index)
-    print(f"scene flow of frame {index} -> {neighbour} written to {args.output}")
-    for path in written.values():
-        print(f"  {path}")
+    for index in frames:
+        neighbour = neighbour_of(index, source.num_frames)
+        images = [source.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
+        debug = None if args.debug_dir is None else Path(args.debug_dir) / f"{index:06d}"
+        with warnings.catch_warnings():  # printed below as one line each
+            warnings.simplefilter("ignore", SceneFlowWarning)
+            estimate = estimate_scene_flow(
+                *images,
+                source.info.camera,
+                num_segments=settings.num_segments,
+                exposure=source.info.exposure,
+                progress=progress,
+                debug_dir=debug,
+            )
+        print_warnings(f"frame {index}: {message}" for message in estimate.warnings)
+        written = write_sceneflow_outputs(args.output, estimate.sceneflow, index)
+        print(f"scene flow of frame {index} -> {neighbour} written to {args.output}")
+        for path in written.values():
+            print(f"  {path}")
     return 0

@@ -10,16 +10,19 @@ types before anything is read or allocated:
 
 - ``--samples`` in 2..1000. One sample is the frame's centre instant alone, an identity
   "blur" that returns the input, so a blur needs at least 2. Building the operator costs
-  memory in proportion to samples x pixels (each sample adds 4 bilinear weights per pixel
-  before they are merged); 1000, 14 times the paper's N = 70, is past any gain.
-- ``--irls`` and ``--cg`` in 1..1000: 0 iterations return the input unchanged; the paper
-  uses 10 and 25, and each IRLS iteration keeps its weights (one float per pixel).
+  memory in proportion to samples x pixels (each sample adds 4 bilinear or 16 cubic weights
+  per pixel before they are merged); 1000, 14 times the paper's N = 70, is past any gain.
+- ``--irls`` and ``--cg`` in 1..1000: 0 iterations return the input unchanged; each IRLS
+  iteration keeps its weights (one float per pixel).
 - ``--alpha`` ``held-out``, ``auto``, ``cross-view`` or in (0, 1]: the prior weight of Eq. 6
   for images in [0, 1]; at 1 the prior already outweighs the data term, beyond it the result
   is flat.
 - ``--segments`` in 1..100000 superpixels.
 - ``--relabel-radius`` in 0..100 px: past the size of a superpixel the window holds segments of
   far-away surfaces.
+
+Every option's help states its default, taken from the DeblurSettings field (``%(default)s``,
+or :func:`on_off` for a switch), and the paper's value where the option has one.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from ..settings import ALPHA_MAX, ALPHA_RULES, RANGE_WHOLE
+from ..settings import ALPHA_MAX, ALPHA_RULES, PAPER_ALPHA, PAPER_CG, PAPER_IRLS, RANGE_WHOLE
 from ..settings import ITERATIONS_RANGE as ITERATIONS
 from ..settings import RELABEL_RANGE as RELABEL
 from ..settings import SAMPLES_RANGE as SAMPLES
@@ -59,13 +62,23 @@ def alpha(text: str) -> float | str:
     return value
 
 
+def on_off(value: bool) -> str:
+    """A switch's state in a help text: ``'on'`` or ``'off'``."""
+    return "on" if value else "off"
+
+
+# The superpixel count of the scene flow when --segments is not given (a rule, not a number:
+# stereodeblur.sceneflow.from_gt.default_num_segments; tests/cli/test_help.py checks the two agree).
+SEGMENTS_RULE = "about 1200 at 640x480, scaled with the image area"
+
+
 @dataclass(frozen=True)
 class SettingOption:
     """The option of one DeblurSettings field."""
 
     field: str
     flag: str
-    help: str
+    help: str  # a switch's help ends before its default, which is appended: "(default: on)"
     type: Callable[[str], object] | None = None
     choices: tuple[str, ...] | None = None
     metavar: str | None = None
@@ -78,7 +91,8 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "kernels",
             "--kernels",
-            "blur kernels from 3D homographies (paper) or 2D displacements (baseline)",
+            "blur kernels from 3D homographies (paper) or 2D displacements (baseline) "
+            "(default: %(default)s)",
             choices=tuple(s.KERNELS),
         ),
         SettingOption(
@@ -97,26 +111,28 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "num_samples",
             "--samples",
-            f"time samples per exposure, {SAMPLES[0]}..{SAMPLES[1]} (paper: 70)",
+            f"time samples per exposure, {SAMPLES[0]}..{SAMPLES[1]} "
+            f"(default: %(default)s; paper: {s.NUM_SAMPLES})",
             type=integer(*SAMPLES),
             metavar="N",
         ),
         SettingOption(
             "alpha",
             "--alpha",
-            "prior weight in (0, 1]; 'held-out' (default): from 'auto' up the grid alphas "
-            "while the solution predicts the other view better, below it only where that "
-            "prediction is within the noise (with --motion-source gt: from the noise level "
-            "up; 2-6 solves per view); 'auto': "
-            "from the input's noise level; 'cross-view': the grid alpha that best predicts the "
-            "other view, one step up (6 solves per view; paper: 0.001)",
+            "prior weight: a number in (0, 1] or a rule; 'held-out': from 'auto' up the grid "
+            "alphas while the solution predicts the other view better, below it only where "
+            "that prediction is within the noise (with --motion-source gt: from the noise "
+            "level up; 2-6 solves per view); 'auto': from the input's noise level; "
+            "'cross-view': the grid alpha that best predicts the other view, one step up "
+            f"(6 solves per view) (default: %(default)s; paper: {PAPER_ALPHA:g})",
             type=alpha,
             metavar="ALPHA",
         ),
         SettingOption(
             "boundary_mask",
             "--boundary-mask",
-            "gt: give the scene's gt/mixed pixels weight 0 (the paper's masked experiment)",
+            "gt: give the scene's gt/mixed pixels weight 0 (the paper's masked experiment) "
+            "(default: none: every pixel keeps its weight)",
             choices=tuple(m for m in s.BOUNDARY_MASKS if m is not None),
         ),
         SettingOption(
@@ -129,21 +145,24 @@ def _options() -> tuple[SettingOption, ...]:
         SettingOption(
             "num_irls",
             "--irls",
-            f"IRLS iterations, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 10)",
+            f"IRLS iterations, {ITERATIONS[0]}..{ITERATIONS[1]} "
+            f"(default: %(default)s; paper: {PAPER_IRLS})",
             type=integer(*ITERATIONS),
             metavar="N",
         ),
         SettingOption(
             "num_cg",
             "--cg",
-            f"CG steps per IRLS iteration, {ITERATIONS[0]}..{ITERATIONS[1]} (paper: 25)",
+            f"CG steps per IRLS iteration, {ITERATIONS[0]}..{ITERATIONS[1]} "
+            f"(default: %(default)s; paper: {PAPER_CG})",
             type=integer(*ITERATIONS),
             metavar="N",
         ),
         SettingOption(
             "num_segments",
             "--segments",
-            "superpixels of the scene flow (default: 1200 at 640x480, scaled with area)",
+            f"superpixels of the scene flow, {SEGMENTS[0]}..{SEGMENTS[1]} "
+            f"(default: {SEGMENTS_RULE})",
             type=integer(*SEGMENTS),
             metavar="N",
         ),
@@ -151,8 +170,8 @@ def _options() -> tuple[SettingOption, ...]:
             "boundary_flow",
             "--boundary-flow",
             "near motion boundaries, the blur from the dense optical flow where it predicts the "
-            "neighbouring frames better (default: on); off: the scene flow's occlusion-aware "
-            "blur everywhere, better with an exact scene flow",
+            "neighbouring frames better; off: the scene flow's occlusion-aware blur "
+            "everywhere, better with an exact scene flow",
             switch=True,
         ),
         SettingOption(
@@ -168,7 +187,7 @@ def _options() -> tuple[SettingOption, ...]:
             "range_guard",
             "--range-guard",
             "deblur with no motion where the estimate leaves [0, 1] over a region, and everywhere "
-            f"if over {RANGE_WHOLE * 100:g} %% of the frame (default: on; the paper has none)",
+            f"if over {RANGE_WHOLE * 100:g} %% of the frame (the paper has none)",
             switch=True,
         ),
         SettingOption(
@@ -188,12 +207,13 @@ def _options() -> tuple[SettingOption, ...]:
 OTHER_OPTIONS = {"scenes": "--scenes", "yaw": "--yaw", "depth": "--depth"}
 
 BOUNDARY_HELP = (
-    "motion boundaries: gated (default: near motion boundaries the blur from the dense optical "
-    "flow where it predicts the neighbouring frames clearly better than the motion; without a "
+    "motion boundaries: gated (near motion boundaries the blur from the dense optical flow "
+    "where it predicts the neighbouring frames clearly better than the motion; without a "
     "dense flow, each instant shows the surface covering the pixel then and pixels showing "
     "surfaces hidden at the frame centre are down-weighted), adaptive (the dense flow's blur in "
     "the whole band, and without one the blurred frame kept where the motion does not predict "
-    "the neighbouring frames) or paper (Eq. 5 data weights as published)"
+    "the neighbouring frames) or paper (Eq. 5 data weights as published) "
+    "(default: %(default)s)"
 )
 
 
@@ -203,13 +223,17 @@ def _defaults() -> dict:
 
 
 def add_settings_options(
-    parser: argparse.ArgumentParser, fields: Iterable[str] | None = None
+    parser: argparse.ArgumentParser,
+    fields: Iterable[str] | None = None,
+    *,
+    title: str = "method (every variant of the paper's tables is a combination)",
 ) -> None:
-    """Add the options of ``fields`` (default: every field with an option) to ``parser``."""
+    """Add the options of ``fields`` (default: every field with an option) to ``parser``, in
+    an argument group of that ``title``."""
     options = {o.field: o for o in _options()}
     wanted = list(options) + ["boundary_weights"] if fields is None else list(fields)
     defaults = _defaults()
-    g = parser.add_argument_group("method (every variant of the paper's tables is a combination)")
+    g = parser.add_argument_group(title)
     for name in wanted:
         if name == "boundary_weights":
             _add_boundary_weights(g, defaults[name])
@@ -221,7 +245,7 @@ def add_settings_options(
                 dest=name,
                 action=argparse.BooleanOptionalAction,
                 default=defaults[name],
-                help=o.help,
+                help=f"{o.help} (default: {on_off(defaults[name])})",
             )
             continue
         g.add_argument(
@@ -248,7 +272,7 @@ def _add_boundary_weights(group, default: str) -> None:
         dest="boundary_weights",
         action="store_const",
         const="none",
-        help="no motion-boundary handling (w = 1)",
+        help=f"no motion-boundary handling, w = 1 (default: off: --boundary-weights {default})",
     )
 
 

@@ -1,9 +1,11 @@
-"""Input options shared by the commands that read a clip (``deblur``, ``synth average``)."""
+"""Input options shared by the commands that read a clip (``deblur``, ``sceneflow``,
+``synth average``): the source, its timing and colour, and the frame selection."""
 
 from __future__ import annotations
 
 import argparse
 
+from ..errors import InputError
 from .base import positive_number
 from .printer import print_warnings
 
@@ -16,23 +18,73 @@ SOURCE_OPTIONS = {
     "sequence": "--sequence",
 }
 
+SOURCE_HELP = "input: a scene folder, a KITTI 2012/2015/raw folder, or two videos LEFT RIGHT"
+FRAMES_SYNTAX = (
+    "one frame '5', a list '1,3' or half-open ranges '10:200' ('4:' to the last), "
+    "counted from 0 in the clip"
+)
 
-def add_source_options(parser: argparse.ArgumentParser) -> None:
-    """``--calib``, ``--exposure``, ``--frame-rate``, ``--color``, ``--sequence``."""
-    g = parser.add_argument_group("input (scene folder, KITTI folder, or LEFT_VIDEO RIGHT_VIDEO)")
-    g.add_argument("--calib", help="stereo calibration of a video pair: OpenCV YAML or camera.json")
-    g.add_argument(
-        "--exposure", type=positive_number, help="exposure in seconds (if the input has none)"
+# What the exposure time is when neither the source nor --exposure gives one.
+_NO_EXPOSURE = {
+    True: "; a source that states none (KITTI, a video whose calibration has none) needs it",
+    False: ", else 0: frames taken as sharp",
+}
+
+
+def add_source_argument(parser: argparse.ArgumentParser) -> None:
+    """The positional ``source``: one folder, or two video files."""
+    parser.add_argument("source", nargs="+", help=SOURCE_HELP + " (with --calib)")
+
+
+def add_frames_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--frames``: the frames ``what`` (e.g. 'to deblur'), in :func:`select_frames`' syntax."""
+    parser.add_argument("--frames", help=f"frames {what}: {FRAMES_SYNTAX} (default: every frame)")
+
+
+def add_source_options(parser: argparse.ArgumentParser, *, require_exposure: bool = True) -> None:
+    """``--calib``, ``--exposure``, ``--frame-rate``, ``--color``, ``--sequence``.
+
+    ``require_exposure``: whether the command needs an exposure time (as
+    :meth:`SourceSpec.from_arguments <stereodeblur.io.sources.SourceSpec.from_arguments>`);
+    the help of ``--exposure`` says what happens without one.
+    """
+    g = parser.add_argument_group(
+        "input (scene folder, KITTI folder, or LEFT_VIDEO RIGHT_VIDEO)",
+        "A value given here overrides the one the source states.",
     )
     g.add_argument(
-        "--frame-rate", type=positive_number, help="frames per second (if the input has none)"
+        "--calib",
+        metavar="FILE",
+        help="stereo calibration of a video pair: OpenCV YAML or camera.json (no default: a "
+        "video pair needs it; folders hold their own calibration and refuse it)",
+    )
+    g.add_argument(
+        "--exposure",
+        type=positive_number,
+        metavar="SECONDS",
+        help="exposure time in seconds; overrides the one the source states (default: the "
+        f"source's{_NO_EXPOSURE[require_exposure]})",
+    )
+    g.add_argument(
+        "--frame-rate",
+        type=positive_number,
+        metavar="FPS",
+        help="frames per second; overrides the source's (default: the source's: a scene's "
+        "camera.json, a video's container or calibration, 10 for KITTI 2012/2015, a KITTI raw "
+        "drive's timestamps)",
     )
     g.add_argument(
         "--color",
         choices=["linear", "srgb"],
-        help="encoding of the input's values (default: the input's, else linear)",
+        help="encoding of the input's values; overrides the source's (default: the source's, "
+        "else linear)",
     )
-    g.add_argument("--sequence", help="KITTI 2012/2015 sequence number, e.g. 5 or 000005")
+    g.add_argument(
+        "--sequence",
+        metavar="N",
+        help="KITTI 2012/2015 sequence number, e.g. 5 or 000005 (default: the folder's only "
+        "sequence; a folder holding several needs it)",
+    )
 
 
 def source_spec(args: argparse.Namespace, *, require_exposure: bool = True):
@@ -60,3 +112,14 @@ def open_source(spec):
 def input_paths(spec) -> list[str]:
     """Every file and folder the source reads (for the output-safety check)."""
     return [*spec.paths, *([spec.calib] if spec.calib else [])]
+
+
+def select_frames(text: str | None, num_frames: int):
+    """``--frames`` checked against the clip (before the selection is expanded); every frame
+    for None."""
+    from ..clip.frames import parse_frames
+
+    try:
+        return parse_frames(text, num_frames)
+    except InputError as err:
+        raise InputError(f"--{err}") from None

@@ -7,7 +7,16 @@ import argparse
 from ..errors import InputError
 from .base import Parser, add_quiet, add_size, names
 from .printer import progress_printer
-from .sources import add_source_options, input_paths, open_source, source_spec
+from .sources import (
+    SOURCE_HELP,
+    add_source_options,
+    input_paths,
+    open_source,
+    source_spec,
+)
+
+# The size of write_planar_set and write_object_set (tests/cli/test_help.py checks they agree).
+SIZE = (640, 480)
 
 
 def add_parser(sub) -> None:
@@ -23,7 +32,7 @@ def add_parser(sub) -> None:
         description="Textured planes under the paper's 3D motions.",
     )
     q.add_argument("output", help="folder to write one scene per motion into")
-    add_size(q, (640, 480))
+    add_size(q, SIZE)
     q.add_argument("--scenes", type=names, help="comma-separated motion names (default: all)")
     add_quiet(q)
     q.set_defaults(func=run_planar)
@@ -35,9 +44,13 @@ def add_parser(sub) -> None:
         "(sigma = 0.01) as NAME_noisy.",
     )
     q.add_argument("output", help="folder to write one scene per name into")
-    add_size(q, (640, 480))
+    add_size(q, SIZE)
     q.add_argument("--scenes", type=names, help="comma-separated scene names (default: all)")
-    q.add_argument("--no-noisy", action="store_true", help="skip the NAME_noisy variants")
+    q.add_argument(
+        "--no-noisy",
+        action="store_true",
+        help="skip the NAME_noisy variants (default: off: they are written)",
+    )
     add_quiet(q)
     q.set_defaults(func=run_objects)
     _add_average(synth)
@@ -50,15 +63,31 @@ def _add_average(synth) -> None:
         description="Average --window consecutive sharp frames of a fast stereo clip into each "
         "blurred frame of a new scene; the centre frame is stored as gt/sharp.",
     )
-    q.add_argument(
-        "source", nargs="+", help="sharp clip: scene or KITTI folder, or two videos LEFT RIGHT"
-    )
+    q.add_argument("source", nargs="+", help=f"the sharp clip; {SOURCE_HELP} (with --calib)")
     q.add_argument("output", help="output scene folder")
-    q.add_argument("--window", type=int, required=True, help="frames per blurred frame (odd)")
-    q.add_argument("--stride", type=int, help="source frames between blurred frames (default: K)")
-    q.add_argument("--overwrite", action="store_true", help="allow writing into another scene")
+    q.add_argument(
+        "--window",
+        type=int,
+        metavar="K",
+        required=True,
+        help="source frames averaged per blurred frame, odd",
+    )
+    q.add_argument(
+        "--stride",
+        type=int,
+        metavar="S",
+        help="source frames between the starts of two blurred frames, at least K "
+        "(default: K: windows side by side)",
+    )
+    q.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into a folder that holds other files or an earlier 'synth average' output "
+        "of another camera; never into an input nor into another scene (camera.json and "
+        "frames not written by 'synth average') (default: off: such folders are refused)",
+    )
     add_quiet(q)
-    add_source_options(q)
+    add_source_options(q, require_exposure=False)
     q.set_defaults(func=run_average)
 
 

@@ -3,11 +3,11 @@
 A blurred pixel is an average of sharp intensities in [0, 1]. If a blur operator can only
 explain the blurred frame with a sharp estimate far outside that range over a whole region,
 the operator is wrong there: e.g. a motion aliased on a fine periodic texture, whose blur
-runs across the stripes that the blurred frame still shows (results/README.md, "The range guard").
+runs across the stripes that the blurred frame still shows.
 :func:`unexplained_regions` finds such regions; the pipeline deblurs them with no motion
 instead (``DeblurSettings.range_guard``). Where they cover much of the frame, the motion failed
 on a whole surface and is not trusted in the rest of it either: the frame is then deblurred
-with no motion everywhere.
+with no motion everywhere. Why the guard and its constants: ``docs/defaults.md#range-guard``.
 """
 
 from __future__ import annotations

@@ -9,13 +9,9 @@ channels, with one standard deviation ``sigma`` in intensity units for all chann
 The paper fixes ``alpha = 0.001`` (Eq. 6). That is far too strong for clean input;
 :func:`auto_alpha` (``--alpha auto``) sets ``alpha = clip(2 * sigma_hat^1.9, 2e-5, 3e-3)``
 from the noise estimate instead (close to ``alpha ~ sigma^2``, the MAP scaling of a prior
-weight with the noise variance). The constants come from ``benchmarks/calibrate_alpha.py``:
-192 cases (8 natural images x 2 framings x 3 homography blurs x ``sigma`` in {0, 0.003,
-0.01, 0.02}, 320 x 240, exact operator); against the best ``alpha`` of {3e-5, 1e-4, 3e-4,
-1e-3, 3e-3} per case the rule loses -0.03 dB on average (-0.68, 0.38, 0.10, 0.08 dB for the
-four noise levels; at most 2.7 dB, on a smooth image at ``sigma = 0.003``), the fixed 0.001
-2.92 dB. The rule does not know about model errors (an estimated scene flow), which act
-like extra noise.
+weight with the noise variance). The rule does not know about model errors (an estimated
+scene flow), which act like extra noise. Why these constants:
+``docs/defaults.md#noise-rule``.
 """
 
 from __future__ import annotations
@@ -32,8 +28,8 @@ _MASK = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
 _MASK_NORM = 6.0
 _HALF_NORMAL_MEDIAN = 0.6744897501960817  # median of |z|, z ~ N(0, 1)
 
-# The calibrated rule (benchmarks/calibrate_alpha.py; the best fit there is c = 1.78,
-# p = 1.875, rounded here).
+# The calibrated rule.
+# Why: docs/defaults.md#noise-rule
 ALPHA_SCALE = 2.0
 """``c`` of ``alpha = c * sigma^p``."""
 ALPHA_POWER = 1.9
@@ -102,7 +98,7 @@ def alpha_from_sigma(
     sigma : float
         Noise standard deviation in intensity units (e.g. :func:`estimate_noise_sigma`).
     scale, power : float
-        ``c`` and ``p`` of the rule; defaults calibrated by ``benchmarks/calibrate_alpha.py``.
+        ``c`` and ``p`` of the rule; the defaults are calibrated (``docs/defaults.md#noise-rule``).
     alpha_min, alpha_max : float
         The clamp, ``0 < alpha_min <= alpha_max``.
 

@@ -33,23 +33,17 @@ kept the boundaries' blur.
 
 Where the motion fails visibly somewhere, it is also less exact everywhere else (a
 piecewise-planar fit of curved or independently moving objects): :func:`alpha_from_trust`
-raises the prior weight with the share of untrusted pixels, up to the paper's 0.001. On
-the benchmark's object scenes (2-6 % untrusted pixels at 640x480) the noise-driven alpha
-alone lost 0.7 dB against 0.001; on the planar scenes (< 0.2 % untrusted) 0.001 lost up to
-8 dB against it (``stereodeblur bench paper --alpha-sweep``).
+raises the prior weight with the share of untrusted pixels, up to the paper's 0.001 (why:
+``docs/defaults.md#trust-floor``).
 
 Separately from the motion, the blur model is wrong where it reaches outside the view: a
 pixel whose exposure path leaves the image (:func:`leaves_view`) mixes in content the frame
 does not show, which both blur operators replace by the edge pixel's (the border rule of
 :mod:`stereodeblur.blur.trajectories`). Fitting those pixels forces the model's error into
-the estimate, where it rings up to ~30 px inwards, differently for the two kernel types
-(``bench planar``, ``forward`` 320x240: homography 0.8 dB below displacement, and both 0.6
-and 1.7 dB below what they reach without it). The pipeline gives them the small data
-weight :data:`OUTSIDE_WEIGHT`, so that the prior and their neighbours' data decide them,
-and does not count them in :func:`alpha_from_trust`. Weight 0 measured as well on the
-planar scenes with true motion but 0.1-0.4 dB lower with an estimated one (where their own
-data still helps); 0.3 and more lose 0.7-3 dB on the fast motions; an anchor to the blurred
-frame instead (strength 0.05-0.3) lowered both kernels' PSNR.
+the estimate, where it rings up to ~30 px inwards, differently for the two kernel types.
+The pipeline gives them the small data weight :data:`OUTSIDE_WEIGHT`, so that the prior and
+their neighbours' data decide them, and does not count them in :func:`alpha_from_trust`
+(why: ``docs/defaults.md#exposure-leaving-the-view``).
 """
 
 from __future__ import annotations
@@ -62,6 +56,7 @@ from ..errors import InputError
 from ..settings import PAPER_ALPHA
 from .noise import estimate_noise_sigma
 
+# Why (the trust's constants): docs/defaults.md#trust-floor
 TRUST_RELATIVE = 0.5
 """``relative``: the share of the frame-to-frame change left unexplained at ``trust = 0.5``."""
 
@@ -73,24 +68,24 @@ UNTRUSTED_SHARE = 0.02
 paper's alpha."""
 
 
+# Why: docs/defaults.md#boundary-handling
 ANCHOR_STRENGTH = 0.3
 """``strength`` of the anchor, relative to the data term's unit weight."""
 
+# Why: docs/defaults.md#boundary-band
 BOUNDARY_RELATIVE = 0.02
 """Least flow difference of a motion boundary, as a share of the flow's length
-(:func:`near_motion_boundaries`). The estimated segments of the planar scene
-``long_exposure_roll`` (95th percentile of the flow 85 px, full exposure) differ by up to
-0.6 px, and an absolute 0.5 px made 11 % of that image a boundary band (-4.4 dB against the true
-motion); on the object scenes 2 % drops fewer than 0.3 % of the scene flow's boundary
-pairs."""
+(:func:`near_motion_boundaries`): the segments of one surface whose long flows differ by a
+fraction of a pixel are not a boundary."""
 
+# Why: docs/defaults.md#exposure-leaving-the-view
 OUTSIDE_WEIGHT = 0.1
 """Data weight ``w`` of the pixels whose exposure path leaves the view."""
 
+# Why: docs/defaults.md#exposure-leaving-the-view
 LEAVES_MARGIN = 0.0
-"""``margin`` of :func:`leaves_view` in pixels. The straight path's ends are exact for the
-clamp rule; 1 or 2 px of slack (for curved paths) measured 0-0.16 dB lower on ``bench
-planar`` 320x240."""
+"""``margin`` of :func:`leaves_view` in pixels: the straight path's ends are exact for the
+clamp rule."""
 
 
 def _as_3d(image, name: str) -> np.ndarray:

@@ -152,10 +152,11 @@ def kernel_grid(
     sceneflow = yaw_sceneflow(size, yaw=yaw, depth=depth)
     exposure = Exposure(FRAME_RATE, EXPOSURE)
     flow = sceneflow.flow()
+    sampling = {"num_samples": num_samples, "interpolation": "bilinear"}  # the paper's Fig. 3
     matrices = {
-        "homography": homography_blur(sceneflow, exposure, num_samples=num_samples).matrix,
+        "homography": homography_blur(sceneflow, exposure, **sampling).matrix,
         "displacement": displacement_blur(
-            flow, sceneflow.reversed().flow(), exposure, num_samples=num_samples
+            flow, sceneflow.reversed().flow(), exposure, **sampling
         ).matrix,
     }
     xs = np.linspace(inset * (width - 1), (1 - inset) * (width - 1), cols).round().astype(int)

@@ -3,8 +3,8 @@
 :func:`cached_motion` stores the estimated scene flow and the initial optical flow of a scene
 in a cache folder and reads them back on later runs (``bench paper``,
 ``benchmarks/calibrate_defaults.py``), so that every column of a scene, in every run, uses
-one motion. Each stored motion has its :func:`motion_signature` beside it; a motion stored with
-other estimator settings (or none, before stop 41) is estimated again. A result cached from a
+one motion. Each stored motion has its :func:`motion_signature` beside it; a motion stored
+without one, or with other estimator settings, is estimated again. A result cached from a
 motion names it by :func:`motion_digest`.
 """
 
@@ -31,8 +31,8 @@ def quiet(function, *args, **kwargs):
 
 
 MOTION_CACHE_VERSION = 2
-"""Version of the stored motions: 2 since stop 57 (with :func:`estimator_fingerprint`), 1 since
-stop 41 (the first with a signature)."""
+"""Version of the stored motions, part of their :func:`motion_signature`: raise it whenever
+what is stored or signed changes."""
 ESTIMATOR_SOURCES = ("sceneflow", "geometry", "pipeline/motion.py", "deconv/trust.py")
 """The package's modules a stored motion is computed by (folders: every ``.py`` in them)."""
 ESTIMATOR_LIBRARIES = ("numpy", "scipy", "cv2", "skimage", "numba", "maxflow")
@@ -45,8 +45,7 @@ STORED_SOURCES = ("sceneflow", "initial-flow")
 def estimator_fingerprint() -> str:
     """Hash of the source of :data:`ESTIMATOR_SOURCES` and the versions of
     :data:`ESTIMATOR_LIBRARIES`: a motion stored by other code or libraries is estimated again
-    (stop 57: the stored scene flows of earlier sessions gave up to 1.4 dB other results at
-    640x480 than the same settings estimate now)."""
+    (other library versions can give another scene flow from the same frames and settings)."""
     import importlib
 
     package = Path(__file__).resolve().parents[1]
@@ -123,8 +122,8 @@ def motion_digest(motion) -> str:
     """Hash of what a deblurring takes from ``motion`` (a
     :class:`~stereodeblur.pipeline.FrameMotion`): its scene flow's segments, planes, motions and
     occlusion (not the dense flows beside it, which the frames determine), else its flows. A
-    result cached with one motion is not reused with another (stop 58: a motion estimated again
-    by other code left the results of the old one in the cache)."""
+    result cached with one motion is not reused with another (a motion estimated again by other
+    code must not meet the results of the old one)."""
     digest = hashlib.sha256()
     sf = motion.sceneflow
     if sf is not None:

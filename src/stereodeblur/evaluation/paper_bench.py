@@ -17,7 +17,7 @@ within 3 px of gt/mixed or where the scene flow's endpoint error exceeds 1 px
 Everything is cached under the work folder, so an interrupted run resumes:
 ``WORK/SIZE/scenes/NAME`` (rendered scenes), ``WORK/SIZE/cache/NAME/`` (scene
 flow, initial flow, one JSON and one PNG per column), ``WORK/SIZE/figures/NAME.png``
-(input | each method | sharp, with 4x |difference| images below), and the tables
+(input | each method | sharp, with 4x ``|difference|`` images below), and the tables
 ``WORK/SIZE/paper.md`` and ``paper.json``.
 """
 

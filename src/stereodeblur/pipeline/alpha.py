@@ -19,25 +19,22 @@ once an error is more than :data:`~stereodeblur.settings.HELD_OUT_STOP` above th
 decade (:data:`~stereodeblur.settings.HELD_OUT_SPAN`) or more above the least's alpha. An
 estimated motion that the range guard rejects over the whole view at a candidate up to the
 paper's alpha (the floor first) is rejected at every larger candidate too, where a strong prior
-can hide the failure (the pipeline's ``_alpha_choice_solve``; stop 57: the striped, noiseless
-test scene family_1050, whose scene flow is rejected at its floor 2e-5, came out 2.3 dB below
-its blurred frame at 3e-3). ``'cross-view'`` takes
+can hide the failure (the pipeline's ``_alpha_choice_solve``). ``'cross-view'`` takes
 :data:`~stereodeblur.settings.CROSS_VIEW_STEP` grid steps above the best predictor of the
-whole grid (``benchmarks/study_alpha_choice.py``).
+whole grid.
 
 With the neighbouring frames observed (``observations='neighbours'``/``'all'``) an estimated
 motion's candidates are scored instead by the untrimmed errors of the other view's and the
 neighbouring frames' observations of the view, summed (:func:`held_out_error`; the data
 weights leave out what they cannot see): a motion error that both views share, which the
 other view's prediction cannot see, shows in the neighbouring frames, and the trimmed error
-drops exactly the pixels it spoils (issue 12, stop 46).
+drops exactly the pixels it spoils.
 
 ``'held-out'`` drops every candidate that a larger candidate fits as well in the view's own
 blurred frame (:func:`undominated`): the exact solution's residual only grows with alpha, so a
 smaller alpha that fits worse has not reached what it is for (its solve rings, or the range
 guard or the clipping to [0, 1] took it back) and its smaller prediction error is no reason to
-take it (stop 53: on the noiseless, striped family_1055 the true motion's floor, 2e-5, predicts
-the other view best and rings; 1e-4 fits the own frame twice as well).
+take it.
 
 Where the floor predicts best, ``'held-out'`` asks whether the trust's raise was needed: it
 predicts the other view once more, through the other view's observation of this view (the
@@ -56,14 +53,15 @@ With ``local_alpha`` the chosen alpha is then scaled per pixel (:func:`local_sca
 candidates' held-out errors are taken around each pixel (:func:`local_error`, a Gaussian window
 of :data:`~stereodeblur.settings.LOCAL_ALPHA_WINDOW` of the width) and each pixel takes the
 locally best candidate's alpha, smoothed in log alpha. One alpha cannot suit a frame whose
-content or blur varies: on a noisy street (street_1067) the fine stripes of a wall, nearly
-erased by the blur, want 3e-4 and the sharp, noisy centre 3e-3. Never below the chosen alpha
-unless the frame is noisy (:data:`~stereodeblur.settings.LOCAL_ALPHA_NOISE`), then down to
+content or blur varies: fine stripes that the blur nearly erases want less regularisation than
+a sharp, noisy region. Never below the chosen alpha unless the frame is noisy
+(:data:`~stereodeblur.settings.LOCAL_ALPHA_NOISE`), then down to
 :data:`~stereodeblur.settings.LOCAL_ALPHA_DOWN` times less: on a quiet frame a locally smaller
-alpha predicts the held-out frames better where the blur hides what it gets wrong (a finely
-striped disc, family_0006: -6.8 dB). By default (``'noisy'``) only on a noisy frame: on quiet
-ones the map, which can then only rise, cost ``bench paper``'s objects 0.1 dB
-(:func:`local_alpha_here`).
+alpha predicts the held-out frames better where the blur hides what it gets wrong. By default
+(``'noisy'``) only on a noisy frame (:func:`local_alpha_here`).
+
+Why the rule and each of its constants: ``docs/defaults.md``, from its section ``#alpha-rule``
+on.
 """
 
 from __future__ import annotations
@@ -96,19 +94,9 @@ if TYPE_CHECKING:
 
 RULES_VERSION = 15
 """Version of the choice of ``'held-out'`` and ``'cross-view'``, part of the signature of cached
-benchmark results (9, 10 and 12 were candidates of stops 41, 42 and 52, not adopted): 15 since stop
-57 (a motion the range guard rejects over the whole view at the floor is rejected above it), 14
-since stop 56 (the search spans a decade above the best predictor, :func:`searched`), 13 since stop
-53 (a candidate that a larger alpha fits as well in the view's own frame is dropped,
-:func:`undominated`), 11 since stop 46 (with the neighbouring frames observed, candidates scored by
-:func:`held_out_error`), 8 since stop 38 (the search goes past small bumps; a motion the range guard
-rejects over the whole view at the paper's alpha is rejected above it), 7 since stop 37 (ties broken
-towards the paper's alpha), 6 since stop 31 (every candidate range-guarded before it is scored), 5
-since stop 29 (the noise gate below the floor), 1 before (2 to 4 were candidates of stops 28 and 29,
-not adopted)."""
+benchmark results: raise it whenever a change of the rule can change a choice."""
 TRUE_MOTION_RULES_VERSION = 11
-"""The same with the true motion: 11 since stop 56, 10 since stop 53, 9 since stop 38, 8 since
-stop 37, 7 since stop 33 (:func:`true_motion_choice`)."""
+"""The same for the choice with the true motion (:func:`true_motion_choice`)."""
 
 
 def rules_version(settings) -> int | None:
@@ -136,9 +124,7 @@ def local_alpha_here(settings, noise_sigma: float) -> bool:
 
 
 LOCAL_ALPHA_VERSION = 3
-"""Version of the local alpha's rule in result caches (3: below the chosen alpha only where the
-motion explains the held-out observations, stop 55; 2: stop 54; 1: stop 54's first runs,
-which missed the least alpha by rounding)."""
+"""Version of the local alpha's rule in result caches: raise it whenever the rule changes."""
 
 
 def local_alpha_signature(settings) -> str:
@@ -155,7 +141,8 @@ def local_alpha_signature(settings) -> str:
 
 def true_motion_choice(settings) -> bool:
     """Whether ``'held-out'`` starts at the noise rule's alpha and scores by the other view's
-    observation: with the true motion (``benchmarks/results/held_out_train_320x240_stop33.md``)."""
+    observation: with the true motion, where no motion error needs the trust's raise (why:
+    ``docs/defaults.md#true-motion-choice``)."""
     return settings.alpha == "held-out" and settings.motion_source == "gt"
 
 

@@ -83,7 +83,7 @@ def unexplained(image: np.ndarray) -> np.ndarray | None:
     """The range guard's region of the estimate ``image``
     (:func:`~stereodeblur.deconv.intensity_range.unexplained_regions` with the settings'
     ``RANGE_*`` constants), or None if it is empty."""
-    from .. import settings as constants  # read at call time: the variants study sets them
+    from .. import settings as constants  # read at call time, so that a study can vary them
     from ..deconv.intensity_range import unexplained_regions
 
     region = unexplained_regions(

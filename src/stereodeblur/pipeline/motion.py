@@ -296,21 +296,20 @@ def stereo_motion(
 
 
 RELABEL_VERSION = 3
-"""Version of :func:`moved_boundaries`' rule, in the benchmarks' cache signatures (1: any segment
-within the radius; 2: another surface only, :data:`RELABEL_JUMP`; 3: and by
-:data:`RELABEL_MARGIN`)."""
+"""Version of :func:`moved_boundaries`' rule, in the benchmarks' cache signatures: raise it
+whenever the rule changes."""
 
+# Why: docs/defaults.md#relabel-radius
 RELABEL_JUMP = 0.5
 """px: a pixel takes only a segment whose flow differs from its own segment's by more (and by
 more than ``BOUNDARY_RELATIVE`` of it), as a motion boundary is told in the trust: the
-segments of one surface are not swapped (bench planar's forward_roll lost 0.67 dB that way)."""
+segments of one surface are not swapped."""
 
+# Why: docs/defaults.md#relabel-radius
 RELABEL_MARGIN = 1.0
 """A pixel moves only if the other segment comes nearer the dense flows by more than this times
 the view's median distance of the estimate to them: where the dense flow is wrong everywhere
-(noisy fine stripes), one pixel's distance is no evidence (train half, 320x240: family_0004
--1.60 dB against no move with 0, 0.00 dB with 1, mean +0.04 dB; results/README.md,
-"Boundaries from the dense flow")."""
+(noisy fine stripes), one pixel's distance is no evidence."""
 
 
 def relabel_rule(settings: DeblurSettings) -> int | None:

@@ -44,8 +44,7 @@ UNSEEN_SHARE = 0.02
 of the other view, instants of a neighbouring frame) above which it gets weight 0."""
 NEIGHBOURS_VERSION = 3
 """Version of the neighbouring frames' data terms, part of the signature of cached benchmark
-results: 3 since stop 45 (one gather, :func:`neighbour_observation`), 2 since stop 44
-(:func:`weighed_neighbours`), 1 before."""
+results: raise it whenever :func:`neighbour_observation` or :func:`weighed_neighbours` changes."""
 NEIGHBOURS = ("previous", "next")
 
 
@@ -67,8 +66,9 @@ def warp_operator(positions: np.ndarray, shape) -> SparseBlur:
     """Row ``y`` samples the source image at ``positions[y]`` (x, y) by Keys' cubic
     convolution, taps clamped to the image.
 
-    Bilinear sampling smooths what the blur keeps (across the motion): on the noiseless planar
-    scenes of ``bench paper`` its error outweighed the observations' gain.
+    Bilinear sampling would smooth what the blur keeps (across the motion), an error that on
+    noiseless frames outweighs what the further observation adds
+    (``docs/defaults.md#observations``).
     """
     H, W = shape
     x, y = positions[..., 0].ravel(), positions[..., 1].ravel()
@@ -187,7 +187,7 @@ def neighbour_observation(
     With homography kernels each of its pixels gathers the sharp frame along its own
     trajectory (:func:`~stereodeblur.blur.homography.homography_blur` at ``offset=step``):
     one interpolation, where the blur of the warped frame interpolates twice and smooths
-    what both keep (results/README.md, "The neighbouring frames in one gather"). At every instant a
+    what both keep (``docs/defaults.md#observations``). At every instant a
     pixel shows the segment of the frame's centre that covers it
     (:func:`~stereodeblur.blur.visibility.sceneflow_visibility` at the same offset); where
     none does for more than :data:`UNSEEN_SHARE` of the exposure it gets weight 0.

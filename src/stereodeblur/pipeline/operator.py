@@ -54,7 +54,7 @@ def boundary_motion(
     Where the exposure mixes two surfaces the blurred edge travels with the occluding one,
     and the dense flow of the blurred frames follows it; a piecewise-rigid scene flow gives
     each pixel the one surface it shows at the frame's centre, and the dense flow's straight
-    kernels explain those pixels better (results/README.md, "Where the defaults come from"). Returns
+    kernels explain those pixels better (``docs/defaults.md#boundary-flow``). Returns
     the motion and the boundary band (bool ``(H, W)``,
     :func:`~stereodeblur.deconv.trust.near_motion_boundaries` of the scene flow's 2D flow, unless
     ``band`` gives it): pass it to :func:`build_operator` as ``flow_rows``.
@@ -133,7 +133,7 @@ def visibility(motion: FrameMotion, exposure: Exposure, settings: DeblurSettings
     (:mod:`stereodeblur.blur.visibility`) and the pixels that show surfaces hidden at
     the reference instant get :func:`~stereodeblur.deconv.weights.hidden_weights`. With
     the estimated scene flow, whose boundaries lie somewhere in the blurred edges, the
-    dense flow's rows are used there instead (results/README.md, "Where the defaults come from").
+    dense flow's rows are used there instead (``docs/defaults.md#boundary-flow``).
     """
     if not occlusion_aware(settings) or flow_rows is not None:
         return None

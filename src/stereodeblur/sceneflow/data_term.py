@@ -25,11 +25,11 @@ from .superpixels import SegmentGraph
 
 __all__ = ["OTHER_SIDE_MARGIN", "data_costs", "sample_pixels"]
 
+# Why: docs/defaults.md#other-side
 OTHER_SIDE_MARGIN = 0.1
 """Census cost by which a match on the other side must undercut the cost of leaving the view to
-replace it (:func:`data_costs`): without it family_1048 (a nearly textureless frame whose two
-global motions differ by 2 % in cost) took the wrong one (results/README.md, "What leaves the
-view at t + 1 was in view at t - 1"); 0.1 not tuned further."""
+replace it (:func:`data_costs`), so that near-zero differences of cost in flat regions do not
+count."""
 
 _MIN_WORK = 100000
 """Fewer candidate samples than this per range are not worth a thread (:func:`data_costs`)."""

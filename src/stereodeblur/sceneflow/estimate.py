@@ -34,8 +34,8 @@ Every tuning constant is a field of :class:`~stereodeblur.sceneflow.settings.Sce
 (fits and the data term use pixels on a 2-pixel grid from 200,000 pixels on).
 Matching blurred frames directly has a limit: under strong blur that changes
 between the frames (a near plane approaching fast), the estimate is biased;
-balancing the blur (needs ``exposure``) reduces the bias (measurements in
-results/README.md, scene-flow section).
+balancing the blur (needs ``exposure``) reduces the bias
+(``docs/defaults.md#blur-balancing``).
 
 Conventions are the package's: left reference view at frame t, pixel centres at
 integer coordinates, planes ``P^T n = 1`` in left-camera coordinates at t,
@@ -410,8 +410,17 @@ def _messages(prepared: PreparedFrames, matches, start, matched, settings) -> li
 
 
 def _write_debug(folder, image, sceneflow, matches: InitialMatches, masks: OcclusionMasks):
+    """Pictures of the estimate, each under a caption saying what it shows and its colours."""
     from ..io.formats import write_png
-    from ..viz import disparity_to_color, flow_to_color, mask_to_image, segment_overlay
+    from ..viz import (
+        disparity_key,
+        disparity_to_color,
+        flow_key,
+        flow_to_color,
+        mask_to_image,
+        segment_overlay,
+        with_caption,
+    )
 
     disparity, flow = sceneflow.disparity(), sceneflow.flow()
     initial_disp = matches.disparity
@@ -421,13 +430,50 @@ def _write_debug(folder, image, sceneflow, matches: InitialMatches, masks: Occlu
     )
     top = float(np.percentile(finite, 99)) if finite.size else 1.0
     max_flow = float(max(np.percentile(np.linalg.norm(flow, axis=-1), 99), 1e-3))
+    width = sceneflow.labels.shape[1]
+    turbo = (
+        f"Colour: turbo scale from dark blue, 0 px (far), to red, {top:.3g} px (near); "
+        "black: unknown."
+    )
+    wheel = (
+        "Colour: direction as hue (right red, down yellow, left cyan-blue, up blue-violet), "
+        f"length as saturation: white 0 px, full colour {max_flow:.3g} px, darker beyond; "
+        "black: unknown."
+    )
+    segments = len(np.unique(sceneflow.labels))
     pictures = {
-        "segments.png": segment_overlay(image, sceneflow.labels),
-        "disparity.png": disparity_to_color(disparity, max_disparity=top),
-        "initial_disparity.png": disparity_to_color(initial_disp, max_disparity=top),
-        "flow.png": flow_to_color(flow, max_flow=max_flow),
-        "initial_flow.png": flow_to_color(matches.flow, max_flow=max_flow),
-        "occlusion.png": mask_to_image(masks.combined),
+        "segments.png": with_caption(
+            segment_overlay(image, sceneflow.labels),
+            [f"Segments: {segments} superpixels (yellow borders) over the left frame t."],
+        ),
+        "disparity.png": with_caption(
+            disparity_to_color(disparity, max_disparity=top),
+            ["Disparity of the scene flow, left view, frame t.", turbo],
+            key=disparity_key(top, width),
+        ),
+        "initial_disparity.png": with_caption(
+            disparity_to_color(initial_disp, max_disparity=top),
+            ["Initial disparity (semi-global matching), left view, frame t.", turbo],
+            key=disparity_key(top, width),
+        ),
+        "flow.png": with_caption(
+            flow_to_color(flow, max_flow=max_flow),
+            ["Optical flow of the scene flow, left view, frame t to t + 1.", wheel],
+            key=flow_key(max_flow),
+        ),
+        "initial_flow.png": with_caption(
+            flow_to_color(matches.flow, max_flow=max_flow),
+            ["Initial optical flow (DIS), left view, frame t to t + 1.", wheel],
+            key=flow_key(max_flow),
+        ),
+        "occlusion.png": with_caption(
+            mask_to_image(masks.combined),
+            [
+                "Occlusion, left view, frame t. White: the pixel leaves the view, is occluded "
+                "or fails the forward-backward check at t + 1, or lies in a "
+                "motion-boundary band; black: followed by one plane's motion."
+            ],
+        ),
     }
     for name, rgb in pictures.items():
         write_png(folder / name, rgb.astype(np.float32) / 255.0, bit_depth=8)

@@ -9,11 +9,10 @@ jumps, so that no segment has to fit two objects.
 
 The motion is fitted to the projections (:func:`~.fitting.fit_rigid_to_projections`),
 not to the 3D points at t + 1: those need the disparity at t + 1 where the point lands,
-which a nearer surface hides there for every point it covers by then (until stop 31 such
-segments took a fit from few points or a neighbour's motion; on the calibration scenes the
-fitted flow was then 1.60 px from the true flow on average, up to 38.5 px on one scene;
-now 0.016 px, at most 0.33 px: ``benchmarks/true_motion_fit.py``). Where some points are
-seen at t + 1, their 3D fit picks which of a small patch's two nearly alike poses is kept.
+which a nearer surface hides there for every point it covers by then, so that such segments
+would take a fit from few points or a neighbour's motion. Where some points are seen at
+t + 1, their 3D fit picks which of a small patch's two nearly alike poses is kept. How close
+the fit comes to the rendered flow: ``docs/defaults.md#true-motion-fit``.
 """
 
 from __future__ import annotations
@@ -31,8 +30,7 @@ from .model import SceneFlow
 
 FIT_VERSION = 2
 """Version of the fit, part of the signature of cached benchmark results with the true
-motion: 2 since stop 31 (motions fitted to the projections, the pose chosen by the points
-seen at t + 1, segments cut at jumps beyond the local gradient), 1 before."""
+motion: raise it whenever the fit changes."""
 
 
 def default_num_segments(shape: tuple[int, int]) -> int:

@@ -4,8 +4,7 @@ A superpixel of the estimate ends where the blurred image's colour changes, whic
 motion boundary is up to a blur length away from where the surfaces change. A dense flow
 of the blurred frames follows the surfaces there more closely. :func:`relabel_by_flow`
 gives each pixel near a segment boundary the segment, among those within ``radius``
-pixels, whose plane and motion predict that flow best (results/README.md, "Boundaries from the dense
-flow").
+pixels, whose plane and motion predict that flow best (why: ``docs/defaults.md#relabel-radius``).
 """
 
 from __future__ import annotations
