@@ -351,7 +351,13 @@ def deblur_clip(
     views = check_arguments(views, workers, scheduler, settings, point_cloud)
     plan = _prepare(spec, frames, views, settings)
     subfolders = [*VIEWS, *(["pointcloud/left", "pointcloud/right"] if point_cloud else [])]
-    check_output(output, _inputs(spec, plan.scene), subfolders=subfolders, command="deblur")
+    check_output(
+        output,
+        _inputs(spec, plan.scene),
+        subfolders=subfolders,
+        command="deblur",
+        in_place=(RUN_LOG, LOCK_NAME),
+    )
     executor = DaskExecutor(scheduler) if scheduler is not None else None
     options = {
         "settings": settings,

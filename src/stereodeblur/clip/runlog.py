@@ -82,15 +82,19 @@ def _now() -> str:
 
 
 class RunLogWriter:
-    """Appends events to a run log, one flushed line each.
+    """Appends events to a run log, one flushed line each; a symlink at ``path`` is refused
+    (an InputError), never followed.
 
     A log whose last line was cut by a kill gets a newline first, so the new events start on
     lines of their own.
     """
 
     def __init__(self, path: str | os.PathLike):
+        from ..io.outputs import open_in_place
+
         self.path = Path(path)
-        self._handle = open(self.path, "ab")  # noqa: SIM115 - closed by close()
+        fd = open_in_place(self.path, os.O_WRONLY | os.O_APPEND)  # never through a symlink
+        self._handle = os.fdopen(fd, "ab")
         size = self._handle.tell()
         if size:
             with open(self.path, "rb") as reader:
