@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from ..errors import InputError
+from ..settings import DASK_CONNECT_TIMEOUT
 from .base import EXIT_USAGE, add_quiet, integer
 from .printer import print_warnings, progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
@@ -55,7 +56,8 @@ def add_parser(sub) -> None:
     r.add_argument(
         "--scheduler",
         help="address of a Dask distributed scheduler, tcp://HOST:PORT (needs stereodeblur[dask]); "
-        "input and output paths must be shared with its workers",
+        "input and output paths must be shared with its workers; an address that does not answer "
+        f"as a scheduler within {DASK_CONNECT_TIMEOUT:g} s is refused",
     )
     add_source_options(p)
     add_settings_options(p)
