@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, StorageError
 
 # A run log line longer than this is damage, not a record (the longest start line of a
 # long clip is a few hundred kilobytes).
@@ -94,19 +94,29 @@ class RunLogWriter:
 
         self.path = Path(path)
         fd = open_in_place(self.path, os.O_WRONLY | os.O_APPEND)  # never through a symlink
-        self._handle = os.fdopen(fd, "ab")
-        size = self._handle.tell()
+        # Unbuffered: a line is written whole or fails, and nothing waits for close().
+        self._handle = os.fdopen(fd, "ab", buffering=0)
+        size = os.fstat(fd).st_size
         if size:
             with open(self.path, "rb") as reader:
                 reader.seek(size - 1)
                 if reader.read(1) != b"\n":
-                    self._handle.write(b"\n")
+                    self._append(b"\n")
+
+    def _append(self, data: bytes) -> None:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[self._handle.write(view) :]
+        except OSError as exc:
+            if StorageError.matches(exc):
+                raise StorageError.of(exc, self.path) from None
+            raise
 
     def write(self, event: dict) -> None:
-        """Append ``event`` with the time."""
+        """Append ``event`` with the time; a StorageError when the disk is full."""
         line = json.dumps({"time": _now(), **event}, default=str)
-        self._handle.write(line.encode("utf-8") + b"\n")
-        self._handle.flush()
+        self._append(line.encode("utf-8") + b"\n")
 
     def close(self) -> None:
         if not self._handle.closed:
