@@ -24,6 +24,7 @@ __all__ = [
     "CROSS_VIEW_STEP",
     "BOUNDARY_MASKS",
     "BOUNDARY_WEIGHTS",
+    "DASK_CONNECT_TIMEOUT",
     "DEFAULT_ALPHA",
     "DEFAULT_BOUNDARY_WEIGHTS",
     "DEFAULT_KERNELS",
@@ -67,6 +68,9 @@ BOUNDARY_WEIGHTS = ("adaptive", "gated", "paper", "none")
 BOUNDARY_MASKS = (None, "gt")
 OBSERVATIONS = ("single", "other-view", "neighbours", "all")
 
+# Seconds a Dask scheduler (a clip run's --scheduler) has to accept the connection and answer
+# as a scheduler; an address that does not is refused after this long, not waited for.
+DASK_CONNECT_TIMEOUT = 10.0
 # The paper's N = 70 instants per exposure (Sec. 4).
 # Why: docs/defaults.md#samples
 NUM_SAMPLES = 70

@@ -96,6 +96,21 @@ def tree_checksums(root: Path) -> dict[str, str]:
     return sums
 
 
+def refused(argv, watched, *needles) -> str:
+    """Run ``stereodeblur ARGV``; check it is refused (exit 2, one line holding every needle)
+    and no watched tree changed; return the line."""
+    before = {path: tree_checksums(path) if path.exists() else None for path in watched}
+    result = run_cli(*argv)
+    lines = result.stderr.strip().splitlines()
+    assert result.code == 2, result.stderr
+    assert len(lines) == 1 and "Traceback" not in result.stderr, lines
+    for needle in needles:
+        assert str(needle) in lines[0], (needle, lines[0])
+    after = {path: tree_checksums(path) if path.exists() else None for path in watched}
+    assert after == before
+    return lines[0]
+
+
 def same_frames(out: Path, reference: Path) -> None:
     assert frame_files(out) == frame_files(reference)
     for name in frame_files(reference):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from stereodeblur.io.formats import write_flo, write_pfm
-from tests.faults.helpers import FAST, run_cli, tree_checksums
+from tests.faults.helpers import FAST, refused
 
 
 @pytest.fixture
@@ -17,48 +17,34 @@ def scene(tiny_scene, tmp_path):
     return shutil.copytree(tiny_scene, tmp_path / "scene")
 
 
-def _refused(argv, watched, *needles):
-    """Run ``stereodeblur ARGV``; check it is refused and no watched tree changed."""
-    before = {path: tree_checksums(path) if path.exists() else None for path in watched}
-    result = run_cli(*argv)
-    lines = result.stderr.strip().splitlines()
-    assert result.code == 2, result.stderr
-    assert len(lines) == 1 and "Traceback" not in result.stderr, lines
-    for needle in needles:
-        assert str(needle) in lines[0], (needle, lines[0])
-    after = {path: tree_checksums(path) if path.exists() else None for path in watched}
-    assert after == before
-    return lines[0]
-
-
 def test_output_left_a_symlink_into_the_input_with_overwrite(scene, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "left").symlink_to(scene / "left")
     argv = ["deblur", scene, "-o", out, "--overwrite", "--frames", "0", *FAST]
-    _refused(argv, [scene, out], "left")
+    refused(argv, [scene, out], "left")
 
 
 def test_output_that_is_another_scene(scene, tiny_scene, tmp_path):
     other = shutil.copytree(tiny_scene, tmp_path / "other")
-    _refused(["deblur", scene, "-o", other, *FAST], [scene, other], other)
-    _refused(["deblur", scene, "-o", other, "--overwrite", *FAST], [scene, other], other)
+    refused(["deblur", scene, "-o", other, *FAST], [scene, other], other)
+    refused(["deblur", scene, "-o", other, "--overwrite", *FAST], [scene, other], other)
 
 
 @pytest.mark.parametrize("where", ["scene", "scene/out", "scene/left"])
 def test_output_inside_or_equal_to_the_input(scene, tmp_path, where):
-    _refused(["deblur", scene, "-o", tmp_path / where, *FAST], [tmp_path], "input")
+    refused(["deblur", scene, "-o", tmp_path / where, *FAST], [tmp_path], "input")
 
 
 def test_output_through_a_dangling_symlink(scene, tmp_path):
     (tmp_path / "out").symlink_to(tmp_path / "missing")
-    _refused(["deblur", scene, "-o", tmp_path / "out", *FAST], [scene], "does not exist")
+    refused(["deblur", scene, "-o", tmp_path / "out", *FAST], [scene], "does not exist")
     assert not (tmp_path / "missing").exists()
 
 
 def test_output_that_is_a_file(scene, tmp_path):
     (tmp_path / "out").write_text("mine")
-    _refused(["deblur", scene, "-o", tmp_path / "out", *FAST], [scene, tmp_path], "out")
+    refused(["deblur", scene, "-o", tmp_path / "out", *FAST], [scene, tmp_path], "out")
 
 
 def test_output_in_an_immutable_folder(scene, tmp_path):
@@ -68,7 +54,7 @@ def test_output_in_an_immutable_folder(scene, tmp_path):
     if chattr is None or subprocess.run([chattr, "+i", str(folder)]).returncode != 0:
         pytest.skip("chattr +i is not available here")
     try:
-        _refused(["deblur", scene, "-o", folder / "out", *FAST], [scene, folder], folder)
+        refused(["deblur", scene, "-o", folder / "out", *FAST], [scene, folder], folder)
     finally:
         subprocess.run([chattr, "-i", str(folder)], check=True)
 
@@ -79,13 +65,13 @@ def test_output_in_an_immutable_folder(scene, tmp_path):
 )
 def test_frame_selection_out_of_range(scene, tmp_path, frames, needles):
     out = tmp_path / "out"
-    _refused(["deblur", scene, "-o", out, "--frames", frames, *FAST], [scene, out], *needles)
+    refused(["deblur", scene, "-o", out, "--frames", frames, *FAST], [scene, out], *needles)
 
 
 @pytest.mark.parametrize("workers", ["0", "-1", "two"])
 def test_bad_worker_count(scene, tmp_path, workers):
     out = tmp_path / "out"
-    _refused(["deblur", scene, "-o", out, "--workers", workers, *FAST], [scene, out], "workers")
+    refused(["deblur", scene, "-o", out, "--workers", workers, *FAST], [scene, out], "workers")
 
 
 @pytest.mark.parametrize("damage", ["truncated", "empty", "not a png"])
@@ -94,7 +80,7 @@ def test_bad_input_frame_is_found_before_the_first_frame(scene, tmp_path, damage
     data = path.read_bytes()
     path.write_bytes({"truncated": data[:60], "empty": b"", "not a png": b"GIF89a" * 9}[damage])
     out = tmp_path / "out"
-    _refused(["deblur", scene, "-o", out, *FAST], [scene, out], path)
+    refused(["deblur", scene, "-o", out, *FAST], [scene, out], path)
 
 
 @pytest.mark.parametrize("unknown", ["nan disparity", "negative disparity", "nan flow"])
@@ -108,4 +94,4 @@ def test_ground_truth_unknown_everywhere(scene, tmp_path, unknown):
         value = np.nan if unknown == "nan disparity" else -3.0
         write_pfm(path, np.full(shape, value, np.float32))
     out = tmp_path / "out"
-    _refused(["deblur", scene, "-o", out, *FAST], [scene, out], path, "unknown")
+    refused(["deblur", scene, "-o", out, *FAST], [scene, out], path, "unknown")

@@ -15,6 +15,7 @@ from stereodeblur.io.outputs import (
     is_own_output,
     make_folder,
     mark_output,
+    open_in_place,
     writing_errors,
 )
 
@@ -194,3 +195,27 @@ def test_a_waiting_output_lock_is_granted_when_the_holder_releases(tmp_path):
     assert other.returncode == 0 and float(out) >= released
     with OutputLock(tmp_path):  # another name is another lock
         pass
+
+
+def test_a_folder_inside_another_scene_is_refused_unless_our_own(tmp_path):
+    other = _scene(tmp_path / "other")
+    for where in (other / "gt", other / "gt" / "deep", other / "left" / "new"):
+        with pytest.raises(InputError, match="another scene"):
+            check_output(where, command="sceneflow")
+    mark_output(other, "deblur")
+    assert check_output(other / "gt", command="deblur") == (other / "gt").resolve()
+
+
+def test_files_written_in_place_may_not_be_symlinks(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / RUN_LOG).symlink_to(tmp_path / "elsewhere.jsonl")
+    assert check_output(out) == out.resolve()
+    with pytest.raises(InputError, match=r"run-log.jsonl is a symlink .*elsewhere.jsonl"):
+        check_output(out, in_place=[RUN_LOG, ".lock"])
+    with pytest.raises(InputError, match="is a symlink"):
+        open_in_place(out / RUN_LOG, os.O_WRONLY | os.O_APPEND)
+    (out / ".lock").symlink_to(tmp_path / "target.lock")
+    with pytest.raises(InputError, match="is a symlink"), OutputLock(out):
+        pass
+    assert not (tmp_path / "elsewhere.jsonl").exists() and not (tmp_path / "target.lock").exists()

@@ -9,6 +9,9 @@ from __future__ import annotations
 import argparse
 import math
 
+# 2: the input or the arguments are at fault; 1: the run failed otherwise (a frame's
+# computation, a full disk); 130: interrupted.
+EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 

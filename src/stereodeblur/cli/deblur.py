@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..errors import InputError
-from .base import EXIT_USAGE, add_quiet, integer
+from ..errors import InputError, StorageError
+from ..settings import DASK_CONNECT_TIMEOUT
+from .base import EXIT_FAILED, EXIT_USAGE, add_quiet, integer
 from .printer import print_warnings, progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
 from .sources import (
@@ -69,7 +70,8 @@ def add_parser(sub) -> None:
         "--scheduler",
         metavar="ADDRESS",
         help="address of a Dask distributed scheduler, tcp://HOST:PORT (needs stereodeblur[dask]); "
-        "input and output paths must be shared with its workers (default: none: run on this "
+        "input and output paths must be shared with its workers; an address that does not answer "
+        f"as a scheduler within {DASK_CONNECT_TIMEOUT:g} s is refused (default: none: run on this "
         "machine)",
     )
     add_source_options(p)
@@ -101,19 +103,27 @@ def _deblur_clip(args, settings, spec, frames, views, *, shown=()) -> int:
     """Run :func:`~stereodeblur.clip.deblur_clip`; print its warnings not ``shown`` yet."""
     from ..clip import deblur_clip
 
-    report = deblur_clip(
-        spec,
-        args.output,
-        frames=None if frames is None else list(frames),
-        views=list(views),
-        settings=settings,
-        overwrite=args.overwrite,
-        point_cloud=args.point_cloud,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=progress_printer(args.quiet) or False,
-        command=["stereodeblur", *args.argv],
-    )
+    try:
+        report = deblur_clip(
+            spec,
+            args.output,
+            frames=None if frames is None else list(frames),
+            views=list(views),
+            settings=settings,
+            overwrite=args.overwrite,
+            point_cloud=args.point_cloud,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            progress=progress_printer(args.quiet) or False,
+            command=["stereodeblur", *args.argv],
+        )
+    except StorageError as err:
+        print(
+            f"stereodeblur: error: {err}; the run stopped, finished frames are kept: "
+            "make room and run the same command again to resume",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
     print_warnings(w for w in report.warnings if w not in shown)
     failed = report.failed
     if failed:
@@ -124,7 +134,7 @@ def _deblur_clip(args, settings, spec, frames, views, *, shown=()) -> int:
             f"(first: frame {first.index} {first.view}: {first.error}){log}",
             file=sys.stderr,
         )
-        return EXIT_USAGE if all(r.input_error for r in failed) else 1
+        return EXIT_USAGE if all(r.input_error for r in failed) else EXIT_FAILED
     skipped = f", {len(report.skipped)} already done" if report.skipped else ""
     print(f"wrote {report.done} frame(s) to {report.output}{skipped}")
     return 0

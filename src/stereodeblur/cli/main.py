@@ -1,12 +1,13 @@
-"""The ``stereodeblur`` command: one parser per command, errors as one line with exit code 2."""
+"""The ``stereodeblur`` command: one parser per command, errors as one line: exit code 2 for
+bad input, 1 for an output's storage that refuses writes (a full disk)."""
 
 from __future__ import annotations
 
 import os
 import sys
 
-from ..errors import InputError
-from .base import EXIT_INTERRUPTED, EXIT_USAGE, Parser
+from ..errors import InputError, StorageError
+from .base import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, Parser
 from .bench import add_parser as add_bench
 from .deblur import add_parser as add_deblur
 from .demo import add_parser as add_demo
@@ -61,6 +62,9 @@ def main(argv: list[str] | None = None) -> int:
             message += f" (option {option})"
         print(f"stereodeblur: error: {message}", file=sys.stderr)
         return EXIT_USAGE
+    except StorageError as err:  # not the input's fault: the run failed, exit 1
+        print(f"stereodeblur: error: {err}", file=sys.stderr)
+        return EXIT_FAILED
     except KeyboardInterrupt:
         print("stereodeblur: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -18,8 +18,13 @@ from .sources import (
     source_spec,
 )
 
-# What the command writes under OUT (the layout of a scene's gt/ folder).
-SUBFOLDERS = ("disparity", "flow", "occlusion", "sceneflow")
+_VIEWS = ("left", "right")
+# What the command writes under OUT (the layout of a scene's gt/ folder, a folder per
+# reference view): each is checked, so a symlinked ``OUT/disparity/left`` is caught too.
+SUBFOLDERS = (
+    *(f"{kind}/{view}" for kind in ("disparity", "flow", "occlusion") for view in _VIEWS),
+    "sceneflow",
+)
 
 
 def add_parser(sub) -> None:

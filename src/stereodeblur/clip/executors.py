@@ -11,7 +11,10 @@ process and end with it (:func:`~stereodeblur.clip.worker.watch_parent`); a work
 (killed, out of memory) has its tasks run again in a new pool. ``DaskExecutor(address)``
 sends them to an existing Dask distributed cluster, whose workers open the input and write
 the output themselves (both paths must be the same on every worker: a shared file system);
-Dask runs a task again on another worker when its worker dies.
+Dask runs a task again on another worker when its worker dies. Before connecting, the address
+must answer Dask's ``identity`` request as a scheduler within
+:data:`~stereodeblur.settings.DASK_CONNECT_TIMEOUT` seconds (:func:`check_scheduler`); a peer
+that answers something else or nothing is an InputError, not a hang.
 """
 
 from __future__ import annotations
@@ -26,12 +29,11 @@ from collections.abc import Iterator, Sequence
 from typing import Protocol
 
 from ..errors import InputError
-from ..settings import NUM_SAMPLES
+from ..settings import DASK_CONNECT_TIMEOUT, NUM_SAMPLES
 from .job import ClipJob, FrameRecord, Task
 from .worker import cores, init_worker, process_task
 
 MAX_POOL_RESTARTS = 2
-DASK_CONNECT_TIMEOUT = 30.0
 DASK_RETRIES = 2
 # Peak memory of a worker deblurring one 640x480 RGB frame with the paper's 70 samples (about
 # 0.6 GB measured, with margin); scaled with pixels and samples for other sizes.
@@ -187,6 +189,92 @@ class PoolExecutor:
         pool.shutdown(wait=True)
 
 
+def _first_line(exc: BaseException) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def _not_a_scheduler(exc: Exception) -> InputError:
+    # Garbage read as Dask messages fails in many ways (a 3 EiB allocation for an HTTP
+    # answer): the kind of failure is enough.
+    return InputError(f"it answers, but not as a Dask scheduler ({type(exc).__name__})")
+
+
+async def _identity(address: str, timeout: float) -> dict:
+    """The answer of ``address`` to Dask's ``identity`` request, all within ``timeout``."""
+    import asyncio
+    import time
+
+    from distributed.comm import connect
+
+    deadline = time.monotonic() + timeout
+    try:  # distributed retries a refused connection until its own, shorter, timeout
+        comm = await asyncio.wait_for(connect(address, timeout=round(0.8 * timeout, 1)), timeout)
+    except TimeoutError:  # connected, but the handshake got no answer
+        raise InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)") from None
+    except OSError as exc:
+        raise InputError(_first_line(exc)) from None
+    except Exception as exc:  # the handshake got garbage
+        raise _not_a_scheduler(exc) from None
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        remaining = max(0.1, deadline - time.monotonic())
+        try:
+            answer = await asyncio.wait_for(comm.read(), remaining)
+        except TimeoutError:
+            raise InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)") from None
+    except InputError:
+        raise
+    except Exception as exc:  # garbage: unpickling or allocation errors of every kind
+        raise _not_a_scheduler(exc) from None
+    finally:
+        comm.abort()
+    return answer
+
+
+def check_scheduler(address: str, timeout: float | None = None) -> None:
+    """Check that ``address`` is a Dask scheduler that answers within ``timeout`` seconds
+    (default :data:`DASK_CONNECT_TIMEOUT`); an InputError saying what answered otherwise.
+
+    The exchange runs on its own event loop in a daemon thread, so it neither needs nor
+    disturbs a loop of the caller, and a peer that never answers costs ``timeout`` at most.
+    """
+    import asyncio
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)  # a port is needed
+    except (ValueError, TypeError) as exc:
+        raise InputError(
+            f"scheduler address {address!r}: {_first_line(exc)}; expected tcp://HOST:PORT"
+        ) from None
+    timeout = DASK_CONNECT_TIMEOUT if timeout is None else float(timeout)
+    outcome: dict = {}
+
+    def ask() -> None:
+        try:
+            outcome["answer"] = asyncio.run(_identity(address, timeout))
+        except BaseException as exc:  # handed to the caller's thread
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=ask, daemon=True, name="dask-identity")
+    thread.start()
+    thread.join(timeout + 2.0)
+    error = outcome.get("error")
+    if thread.is_alive():
+        error = InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)")
+    elif error is None:
+        answer = outcome.get("answer")
+        kind = answer.get("type") if isinstance(answer, dict) else type(answer).__name__
+        if kind != "Scheduler":
+            error = InputError(f"it answers, but as a {kind}, not as a Dask scheduler")
+    if error is not None:
+        message = _first_line(error)
+        raise InputError(f"cannot connect to the Dask scheduler at {address}: {message}") from None
+
+
 def _dask_client(address: str):
     try:
         from distributed import Client
@@ -194,10 +282,11 @@ def _dask_client(address: str):
         raise InputError(
             "a Dask scheduler needs dask.distributed: pip install 'stereodeblur[dask]'"
         ) from None
+    check_scheduler(address)
     try:
         return Client(address, timeout=DASK_CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
-        message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    except Exception as exc:
+        message = _first_line(exc)
         raise InputError(f"cannot connect to the Dask scheduler at {address}: {message}") from None
 
 

@@ -55,6 +55,9 @@ class FrameRecord:
     input_error: bool = False
     details: str | None = None
     alpha: float | None = None  # the prior weight used (chosen per frame with 'auto')
+    # Set when the output's storage refused a write (StorageError): the run stops at once.
+    storage_errno: int | None = None
+    storage_path: str | None = None
 
     def to_json(self) -> dict:
         data = {"event": "frame", **dataclasses.asdict(self)}
@@ -125,8 +128,11 @@ def is_complete_png(path: Path, shape: tuple[int, int] | None = None) -> bool:
 
 
 def is_finished(job: ClipJob, index: int, view: str) -> bool:
-    """Whether every file of (``index``, ``view``) exists and is complete."""
+    """Whether every file of (``index``, ``view``) exists and is complete. A symlink is not a
+    result (a run writes none): the view is deblurred again and the link replaced."""
     *others, frame = frame_outputs(job, index, view)
+    if any(p.is_symlink() for p in [*others, frame]):
+        return False
     if not all(p.is_file() and p.stat().st_size > 0 for p in others):
         return False
     return is_complete_png(frame, job.shape)

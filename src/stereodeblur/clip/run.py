@@ -9,7 +9,10 @@ view's record goes to the run log as it arrives.
 
 An interrupted run (Ctrl-C, SIGTERM) logs the interruption and keeps every finished frame;
 it removes only what it created itself: its temporaries, and the output folder when it
-created that folder and nothing else is in it.
+created that folder and nothing else is in it. A write the storage refuses (no space left,
+quota, read-only: :class:`~stereodeblur.errors.StorageError`) stops the run the same way, at
+once: no further frame is computed, the half-written temporaries are removed, and the
+StorageError is raised; the same run resumes once there is room.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, StorageError
 from ..geometry.camera import VIEWS
 from ..io.outputs import (
     LOCK_NAME,
@@ -217,9 +220,15 @@ def _run_tasks(log, executor, job, tasks, bar, on_frame) -> list[FrameRecord]:
                 bar.update(record)
             if on_frame is not None:
                 on_frame(record)
+            if record.storage_errno is not None:  # the disk is full: no further frame
+                number = record.storage_errno
+                raise StorageError(number, os.strerror(number), record.storage_path)
     except BaseException as exc:
         reason = "SIGTERM" if isinstance(exc, Terminated) else type(exc).__name__
-        log.write({"event": "interrupted", "reason": reason, "done": len(records)})
+        if isinstance(exc, StorageError):
+            reason = str(exc)
+        with contextlib.suppress(StorageError):  # the log may be on the disk that is full
+            log.write({"event": "interrupted", "reason": reason, "done": len(records)})
         raise
     finally:
         close = getattr(runner, "close", None)
@@ -269,7 +278,11 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
                 plan, job, identity, tasks, skipped, workers, scheduler, options["command"], notes
             )
         )
-        records = _run_tasks(log, executor, job, tasks, bar, options["on_frame"])
+        try:
+            records = _run_tasks(log, executor, job, tasks, bar, options["on_frame"])
+        except StorageError:  # the executor has stopped: remove what its frames left
+            remove_temporaries(output)
+            raise
         seconds = time.perf_counter() - start
         done = sum(r.status == "done" for r in records)
         log.write(
@@ -351,7 +364,13 @@ def deblur_clip(
     views = check_arguments(views, workers, scheduler, settings, point_cloud)
     plan = _prepare(spec, frames, views, settings)
     subfolders = [*VIEWS, *(["pointcloud/left", "pointcloud/right"] if point_cloud else [])]
-    check_output(output, _inputs(spec, plan.scene), subfolders=subfolders, command="deblur")
+    check_output(
+        output,
+        _inputs(spec, plan.scene),
+        subfolders=subfolders,
+        command="deblur",
+        in_place=(RUN_LOG, LOCK_NAME),
+    )
     executor = DaskExecutor(scheduler) if scheduler is not None else None
     options = {
         "settings": settings,

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, StorageError
 
 # A run log line longer than this is damage, not a record (the longest start line of a
 # long clip is a few hundred kilobytes).
@@ -82,27 +82,41 @@ def _now() -> str:
 
 
 class RunLogWriter:
-    """Appends events to a run log, one flushed line each.
+    """Appends events to a run log, one flushed line each; a symlink at ``path`` is refused
+    (an InputError), never followed.
 
     A log whose last line was cut by a kill gets a newline first, so the new events start on
     lines of their own.
     """
 
     def __init__(self, path: str | os.PathLike):
+        from ..io.outputs import open_in_place
+
         self.path = Path(path)
-        self._handle = open(self.path, "ab")  # noqa: SIM115 - closed by close()
-        size = self._handle.tell()
+        fd = open_in_place(self.path, os.O_WRONLY | os.O_APPEND)  # never through a symlink
+        # Unbuffered: a line is written whole or fails, and nothing waits for close().
+        self._handle = os.fdopen(fd, "ab", buffering=0)
+        size = os.fstat(fd).st_size
         if size:
             with open(self.path, "rb") as reader:
                 reader.seek(size - 1)
                 if reader.read(1) != b"\n":
-                    self._handle.write(b"\n")
+                    self._append(b"\n")
+
+    def _append(self, data: bytes) -> None:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[self._handle.write(view) :]
+        except OSError as exc:
+            if StorageError.matches(exc):
+                raise StorageError.of(exc, self.path) from None
+            raise
 
     def write(self, event: dict) -> None:
-        """Append ``event`` with the time."""
+        """Append ``event`` with the time; a StorageError when the disk is full."""
         line = json.dumps({"time": _now(), **event}, default=str)
-        self._handle.write(line.encode("utf-8") + b"\n")
-        self._handle.flush()
+        self._append(line.encode("utf-8") + b"\n")
 
     def close(self) -> None:
         if not self._handle.closed:

@@ -22,7 +22,7 @@ import traceback
 import warnings
 from collections.abc import Iterator
 
-from ..errors import InputError
+from ..errors import InputError, StorageError
 from .job import ClipJob, FrameRecord
 
 PARENT_POLL_SECONDS = 0.5
@@ -173,9 +173,13 @@ def _write_view(job: ClipJob, source, writer, result, view: str, index: int) -> 
     writer.write_frame(view, index, result.image)
 
 
-def _failed(index, views, start, messages, worker, exc) -> tuple[FrameRecord, ...]:
+def _failed(index, views, start, messages, worker, exc, output) -> tuple[FrameRecord, ...]:
     is_input = isinstance(exc, InputError | FileNotFoundError)
-    message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    storage = None
+    if StorageError.matches(exc):  # named by the file it names, else by the output folder
+        storage = StorageError.of(exc, None if exc.filename else output)
+    message = str(storage or exc).splitlines()[0] if str(storage or exc) else type(exc).__name__
+    plain = is_input or storage is not None
     return tuple(
         FrameRecord(
             index,
@@ -184,9 +188,11 @@ def _failed(index, views, start, messages, worker, exc) -> tuple[FrameRecord, ..
             seconds=time.perf_counter() - start,
             warnings=tuple(dict.fromkeys(messages)),
             worker=worker,
-            error=message if is_input else f"{type(exc).__name__}: {message}",
+            error=message if plain else f"{type(exc).__name__}: {message}",
             input_error=is_input,
-            details=None if is_input else traceback.format_exc(),
+            details=None if plain else traceback.format_exc(),
+            storage_errno=None if storage is None else storage.errno,
+            storage_path=None if storage is None else storage.filename,
         )
         for view in views
     )
@@ -220,7 +226,7 @@ def process_task(
             write_seconds = (time.perf_counter() - t0) / len(views)
     except Exception as exc:  # reported in the log and the summary, not raised
         messages += [str(w.message) for w in caught or ()]
-        return _failed(index, views, start, messages, worker, exc)
+        return _failed(index, views, start, messages, worker, exc, job.output)
     messages += [str(w.message) for w in caught]
     seconds = time.perf_counter() - start
     return tuple(

@@ -7,9 +7,14 @@ An output (a folder, or a single file such as a rendered PNG) is checked by
   the output, each of its existing parents and each subfolder that will be written
   (e.g. ``OUT/left`` being a symlink into the input) are compared after ``Path.resolve``;
 - it never goes through a dangling symlink (a clear error instead of ``FileExistsError``);
-- it is never a folder holding another scene (``camera.json`` and frames) unless that scene
-  is this command's own earlier output, recognised by the marker file :data:`MARKER`
-  (written by :func:`mark_output`) or, for ``deblur``, by its run log :data:`RUN_LOG`;
+- it is never a folder holding another scene (``camera.json`` and frames), nor inside one
+  (``OTHER_SCENE/gt``), unless that scene is this command's own earlier output, recognised by
+  the marker file :data:`MARKER` (written by :func:`mark_output`) or, for ``deblur``, by its
+  run log :data:`RUN_LOG`;
+- a file the command opens in place (appends to or locks, such as the run log and
+  :data:`LOCK_NAME`) is never a symlink: opening it would follow the link, maybe into an
+  input. Every other file is written to a temporary name and renamed over its target, which
+  replaces a symlink there instead of following it;
 - a folder that cannot be written is an :class:`~stereodeblur.errors.InputError` naming it,
   not a ``PermissionError``.
 
@@ -44,6 +49,7 @@ __all__ = [
     "is_scene_folder",
     "make_folder",
     "mark_output",
+    "open_in_place",
     "resolve_output",
     "writing_errors",
 ]
@@ -82,6 +88,25 @@ def resolve_output(path: str | os.PathLike) -> Path:
         return path.resolve(strict=False)
     except (OSError, RuntimeError) as exc:  # a symlink loop
         raise InputError(f"output {path} cannot be resolved: {exc}") from None
+
+
+def _foreign_scene(folder: Path, command: str | None) -> Path | None:
+    """The first of ``folder`` and its parents that holds a scene not written by ``command``."""
+    for item in [folder, *folder.parents]:
+        if item.is_dir() and is_scene_folder(item) and not is_own_output(item, command):
+            return item
+    return None
+
+
+def _check_in_place(folder: Path, shown: Path, names: Iterable[str]) -> None:
+    """Files of ``folder`` opened in place may not be symlinks (dangling or not)."""
+    for name in names:
+        path = folder / name
+        if path.is_symlink():
+            raise InputError(
+                f"refusing to write output {shown}: {path} is a symlink (to "
+                f"{os.readlink(path)}) and is written in place; remove the link"
+            )
 
 
 def is_scene_folder(folder: Path) -> bool:
@@ -148,6 +173,7 @@ def check_output(
     subfolders: Iterable[str] = (),
     command: str | None = None,
     kind: str = "folder",
+    in_place: Iterable[str] = (),
 ) -> Path:
     """Check that ``output`` may be written; return it with its symlinks resolved.
 
@@ -161,9 +187,12 @@ def check_output(
         Subfolders of a folder output that will be written (``'left'``, ``'gt/flow'``); each
         is resolved too, so one that is a symlink into an input is caught.
     command : str, optional
-        The command writing; a folder holding another scene is accepted only when it is this
-        command's own earlier output.
+        The command writing; a folder holding another scene, or inside one, is accepted only
+        when that scene is this command's own earlier output.
     kind : {'folder', 'file'}
+    in_place : iterable of str
+        Files of a folder output that are opened in place rather than replaced (the run log,
+        the lock); none may be a symlink.
 
     Raises
     ------
@@ -191,16 +220,29 @@ def check_output(
                     "choose a separate output"
                 )
     if kind == "folder":
-        foreign = [resolved] + [t.parent for t in targets[1:] if resolved not in t.parents]
-        for folder in foreign:
-            if folder.is_dir() and is_scene_folder(folder) and not is_own_output(folder, command):
+        for target in targets:
+            folder = _foreign_scene(target, command)
+            if folder is not None:
                 raise InputError(
                     f"refusing to write output {shown} into {folder}: it holds another scene "
                     "(camera.json and frames); choose another folder"
                 )
+        _check_in_place(resolved, shown, in_place)
     for target in targets:
         _check_writable(target, shown)
     return resolved
+
+
+def open_in_place(path: str | os.PathLike, flags: int) -> int:
+    """``os.open(path, flags | O_CREAT)`` that refuses a symlink at ``path`` (dangling or not)
+    with an InputError instead of following it."""
+    nofollow = getattr(os, "O_NOFOLLOW", 0)
+    try:
+        return os.open(path, flags | os.O_CREAT | nofollow, 0o666)
+    except OSError:
+        if not Path(path).is_symlink():
+            raise
+    raise InputError(f"{path} is a symlink (to {os.readlink(path)}); remove the link")
 
 
 def make_folder(folder: str | os.PathLike) -> Path:
@@ -246,7 +288,7 @@ class OutputLock:
         import fcntl
 
         with writing_errors(self.path):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
+            fd = open_in_place(self.path, os.O_RDWR)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX if self.wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:

@@ -35,6 +35,7 @@ from scipy import ndimage
 
 from ..errors import InputError
 from ..geometry.camera import VIEWS, Exposure
+from ..io.files import atomic_write
 from ..io.scene import CameraInfo, SceneWriter
 
 
@@ -146,7 +147,7 @@ def average_clip(
             for j, c in enumerate(centres)
         ],
     }
-    path = Path(output) / "gt" / "average.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    atomic_write(
+        Path(output) / "gt" / "average.json", (json.dumps(record, indent=2) + "\n").encode()
+    )
     return Path(output)

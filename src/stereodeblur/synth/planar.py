@@ -56,6 +56,7 @@ from ..errors import InputError
 from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.plane import move_plane
 from ..geometry.rigid import se3_exp, so3_exp
+from ..io.files import atomic_write
 from .render import (
     PlanarObject,
     RenderedScene,
@@ -454,9 +455,7 @@ def write_rendered_scene(
         "frame_rate": scene.exposure.frame_rate,
         "reference": "frame 0 centre",
     }
-    path = root / "gt" / "objects.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(objects, indent=2) + "\n", encoding="utf-8")
+    atomic_write(root / "gt" / "objects.json", (json.dumps(objects, indent=2) + "\n").encode())
     return root
 
 
