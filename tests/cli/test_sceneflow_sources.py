@@ -24,10 +24,10 @@ WRITTEN = ("disparity/left/{:06d}.pfm", "flow/left/{:06d}.flo", "occlusion/left/
 
 def _scene8(root, frames, camera, timing):
     """A scene folder holding ``frames`` (8-bit values, grey or RGB)."""
-    writer = SceneWriter(root, CameraInfo(camera, timing, "linear"))
+    writer = SceneWriter(root, CameraInfo(camera, timing, "srgb"))
     for view, images in frames.items():
         for i, image in enumerate(images):
-            writer.write_frame(view, i, to_u8(image) / 255.0, bit_depth=8)
+            writer.write_frame(view, i, to_u8(image) / 255.0, bit_depth=8, linear=False)
     return root
 
 

@@ -22,10 +22,10 @@ def layouts(clip_scene, tmp_path_factory):
     root = tmp_path_factory.mktemp("layouts")
     frames = {v: [scene.read_frame(v, i) for i in range(NUM_FRAMES)] for v in ("left", "right")}
     camera, timing = scene.info.camera, scene.info.exposure
-    writer = SceneWriter(root / "scene8", CameraInfo(camera, timing, "linear"))
+    writer = SceneWriter(root / "scene8", CameraInfo(camera, timing, "srgb"))
     for view, images in frames.items():
         for i, image in enumerate(images):
-            writer.write_frame(view, i, to_u8(image) / 255.0, bit_depth=8)
+            writer.write_frame(view, i, to_u8(image) / 255.0, bit_depth=8, linear=False)
     timing_options = ["--exposure", timing.exposure, "--frame-rate", timing.frame_rate]
     kitti = write_kitti_2015(
         root / "kitti", frames["left"], frames["right"], camera.K, camera.baseline

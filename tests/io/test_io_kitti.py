@@ -6,7 +6,8 @@ import pytest
 
 from stereodeblur.cli import main
 from stereodeblur.errors import InputError
-from stereodeblur.io.formats import write_png
+from stereodeblur.io.camera_json import read_camera
+from stereodeblur.io.formats import read_png, srgb_to_linear, write_png
 from stereodeblur.io.kitti import (
     KITTI_FRAME_RATE,
     kitti_camera,
@@ -67,7 +68,9 @@ def test_scene_flow_2015(kitti, clips):
     assert source.info.exposure.frame_rate == KITTI_FRAME_RATE
     for view, frames in zip(("left", "right"), clips, strict=True):
         for i, frame in enumerate(frames):
-            np.testing.assert_array_equal(source.read_frame(view, i), frame.astype(np.float32))
+            stored = frame.astype(np.float32)
+            np.testing.assert_array_equal(source.read_frame(view, i, linear=False), stored)
+            np.testing.assert_array_equal(source.read_frame(view, i), srgb_to_linear(stored))
     assert not source.has_gt("flow", "left", 0)
     assert source.frame_path("right", 2).name == "000000_12.png"
 
@@ -78,7 +81,9 @@ def test_stereo_flow_2012_grey(tmp_path):
     source = open_source(root, exposure=0.02, frame_rate=10)
     assert source.kind == "kitti-2012" and source.channels == 1
     assert source.info.camera.baseline == pytest.approx(BASELINE, rel=1e-12)
-    np.testing.assert_array_equal(source.read_frame("right", 1), right[1].astype(np.float32))
+    np.testing.assert_array_equal(
+        source.read_frame("right", 1), srgb_to_linear(right[1].astype(np.float32))
+    )
 
 
 def test_raw_recording_takes_its_frame_rate_from_timestamps(tmp_path, clips):
@@ -86,9 +91,39 @@ def test_raw_recording_takes_its_frame_rate_from_timestamps(tmp_path, clips):
     source = open_source(drive, exposure=0.02)
     assert source.kind == "kitti-raw"
     assert source.info.exposure.frame_rate == pytest.approx(9.5, rel=1e-7)  # ns stamps
-    np.testing.assert_array_equal(source.read_frame("left", 2), clips[0][2].astype(np.float32))
+    np.testing.assert_array_equal(
+        source.read_frame("left", 2), srgb_to_linear(clips[0][2].astype(np.float32))
+    )
     stamps = read_timestamps(drive / "image_02" / "timestamps.txt")
     np.testing.assert_allclose(np.diff(stamps), 1 / 9.5, atol=1e-9)
+
+
+@pytest.mark.parametrize("layout", ["kitti-2015", "kitti-2012", "kitti-raw"])
+def test_kitti_is_srgb_unless_told_linear(layout, tmp_path, clips):
+    """KITTI's PNGs are camera output: read as sRGB (linearised); color='linear' overrides."""
+    writers = {"kitti-2015": write_kitti_2015, "kitti-2012": write_kitti_2012}
+    root = writers.get(layout, write_kitti_raw)(tmp_path / "2011_09_26", *clips, K, BASELINE)
+    stored = clips[0][1].astype(np.float32)
+    source = open_source(root, exposure=0.02)
+    assert source.info.color == "srgb"
+    np.testing.assert_array_equal(source.read_frame("left", 1), srgb_to_linear(stored))
+    assert source.read_frame("left", 1).mean() < stored.mean()  # the curve darkens midtones
+    linear = open_source(root, exposure=0.02, color="linear")
+    assert linear.info.color == "linear"
+    np.testing.assert_array_equal(linear.read_frame("left", 1), stored)
+
+
+def test_results_are_written_back_in_the_inputs_encoding(kitti, clips, tmp_path):
+    """A frame read linear and written by the output's writer (as a run does) gives back the
+    stored sRGB values, and the output's camera.json says "srgb"."""
+    from stereodeblur.io.scene import SceneWriter
+
+    source = open_source(kitti, exposure=0.02)
+    writer = SceneWriter(tmp_path / "out", source.info)
+    path = writer.write_frame("left", 1, source.read_frame("left", 1))
+    np.testing.assert_allclose(read_png(path), clips[0][1], atol=1e-4)
+    assert read_camera(tmp_path / "out").color == "srgb"
+    assert '"color": "srgb"' in (tmp_path / "out" / "camera.json").read_text()
 
 
 def test_raw_recording_warns_of_dropped_frames(tmp_path, clips):

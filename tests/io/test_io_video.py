@@ -46,9 +46,11 @@ def test_lossless_codecs_read_back_exactly(codec, suffix, tmp_path):
                          exposure=0.01)  # fmt: skip
     assert source.num_frames == NUM_FRAMES and source.info.camera.baseline == pytest.approx(0.1)
     for i in range(NUM_FRAMES):
-        np.testing.assert_array_equal(source.read_frame("left", i), frames[i] / np.float32(255))
         np.testing.assert_array_equal(
-            source.read_frame("right", i), frames[-1 - i] / np.float32(255)
+            source.read_frame("left", i, linear=False), frames[i] / np.float32(255)
+        )
+        np.testing.assert_array_equal(
+            source.read_frame("right", i, linear=False), frames[-1 - i] / np.float32(255)
         )
 
 
@@ -61,11 +63,37 @@ def test_frames_are_read_lazily_in_any_order(pair, monkeypatch):
     original = source._decode
     monkeypatch.setattr(source, "_decode", lambda v, i: decoded.append((v, i)) or original(v, i))
     for i in [5, 1, 2, 6, 0, 2, 3]:
-        np.testing.assert_array_equal(source.read_frame("left", i), left[i] / np.float32(255))
-    np.testing.assert_array_equal(source.read_frame("right", 4), right[4] / np.float32(255))
+        np.testing.assert_array_equal(
+            source.read_frame("left", i, linear=False), left[i] / np.float32(255)
+        )
+    np.testing.assert_array_equal(
+        source.read_frame("right", 4, linear=False), right[4] / np.float32(255)
+    )
     # Frame 2 the second time comes from the small cache; nothing is decoded in advance.
     assert decoded == [("left", i) for i in [5, 1, 2, 6, 0, 3]] + [("right", 4)]
     assert all(len(c) <= video_module.CACHE_FRAMES for c in source._cache.values())
+
+
+def test_a_video_is_srgb_unless_its_calibration_or_color_says(pair, tmp_path):
+    """Video files are camera output: sRGB by default (an OpenCV calibration, a camera.json
+    without "color"); a camera.json with "color" or color='linear' overrides."""
+    (left_path, right_path, calib), left, _ = pair
+    stored = left[0] / np.float32(255)
+    source = open_source([left_path, right_path], calib=calib, exposure=0.01)
+    assert source.info.color == "srgb"
+    np.testing.assert_array_equal(source.read_frame("left", 0), srgb_to_linear(stored))
+    np.testing.assert_array_equal(source.read_frame("left", 0, linear=False), stored)
+    camera = {"format": "stereo-video/1", "K": K.tolist(), "baseline": 0.1,
+              "frame_rate": 25.0, "exposure": 0.02}  # fmt: skip
+    (tmp_path / "camera.json").write_text(json.dumps(camera))
+    source = open_source([left_path, right_path], calib=tmp_path / "camera.json")
+    assert source.info.color == "srgb"
+    (tmp_path / "camera.json").write_text(json.dumps({**camera, "color": "linear"}))
+    source = open_source([left_path, right_path], calib=tmp_path / "camera.json")
+    assert source.info.color == "linear"
+    np.testing.assert_array_equal(source.read_frame("left", 0), stored)
+    source = open_source([left_path, right_path], calib=calib, exposure=0.01, color="linear")
+    np.testing.assert_array_equal(source.read_frame("left", 0), stored)
 
 
 def test_options_and_camera_json_give_timing_and_colour(pair, tmp_path):

@@ -76,8 +76,9 @@ def add_source_options(parser: argparse.ArgumentParser, *, require_exposure: boo
     g.add_argument(
         "--color",
         choices=["linear", "srgb"],
-        help="encoding of the input's values; overrides the source's (default: the source's, "
-        "else linear)",
+        help="encoding of the input's values; frames are deblurred in linear light and written "
+        "back in this encoding (default: a scene folder's camera.json, linear if it has no "
+        "'color'; sRGB for KITTI and videos, unless a camera.json given with --calib says)",
     )
     g.add_argument(
         "--sequence",

@@ -426,7 +426,8 @@ def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
     """Read a stereo calibration: OpenCV FileStorage YAML (or JSON), or our ``camera.json``.
 
     A JSON object with a ``"format"`` key is read as ``camera.json`` (SCENE_FORMAT.md),
-    which also gives frame rate, exposure and colour.
+    which also gives frame rate, exposure and colour (``color`` None when it has no
+    ``"color"`` key: the source's own default applies).
     """
     path = Path(path)
     text = _read_text(path)
@@ -441,7 +442,7 @@ def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
                 info.camera,
                 frame_rate=info.exposure.frame_rate,
                 exposure=info.exposure.exposure,
-                color=info.color,
+                color=info.color if "color" in data else None,
                 path=path,
             )
         return _opencv_json(data, path)

@@ -18,6 +18,9 @@ from ..geometry.camera import VIEWS, Exposure, StereoCamera
 from .camera_json import COLORS, CameraInfo
 from .srgb import srgb_to_linear
 
+# The encoding of camera output (video files, KITTI's PNGs) when its calibration states none.
+CAMERA_OUTPUT_COLOR = "srgb"
+
 
 class FrameSource:
     """Base of the non-scene sources; satisfies :class:`~stereodeblur.io.protocol.StereoScene`.
@@ -159,7 +162,9 @@ def camera_info(
 ) -> CameraInfo:
     """Camera info from the given values, else the source's, else a one-line error.
 
-    ``what`` names the source in messages, e.g. ``'KITTI folder data/training'``.
+    ``what`` names the source in messages, e.g. ``'KITTI folder data/training'``. ``color``
+    given wins over ``source_color``; with neither the values count as linear (camera output
+    passes ``source_color=CAMERA_OUTPUT_COLOR`` when its calibration states no encoding).
     Errors about a value the caller gives or must give carry its name as
     :attr:`InputError.parameter` (``'frame_rate'``, ``'exposure'``, ``'color'``).
     """

@@ -26,7 +26,9 @@ Calibration files hold lines ``key: numbers``. The stereo camera is that of
 projection matrix, the baseline from the difference of the two projection
 matrices' translations (KITTI's ``P_rect_0i = K [I | t_i]``). The benchmarks
 are recorded at 10 frames per second; raw recordings take the frame rate from
-the median interval of their timestamps. KITTI states no exposure time.
+the median interval of their timestamps. KITTI states no exposure time. Its PNGs are camera
+output, sRGB-encoded (:data:`~stereodeblur.io.frame_source.CAMERA_OUTPUT_COLOR`) unless
+``color`` says otherwise: frames are linearised on reading.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ import numpy as np
 
 from ..errors import InputError
 from .calibration import stereo_from_projections
-from .frame_source import FrameSource, camera_info
+from .frame_source import CAMERA_OUTPUT_COLOR, FrameSource, camera_info
 from .intrinsics import check_intrinsics
 from .png import read_png, read_png_header
 from .scene import check_frame_size
@@ -409,6 +411,7 @@ def open_kitti(
         exposure=exposure,
         color=color,
         source_frame_rate=layout.frame_rate,
+        source_color=CAMERA_OUTPUT_COLOR,
         require_exposure=require_exposure,
     )
     return KittiSource(

@@ -14,7 +14,10 @@ Kinds of input
 - two video files, left then right, with a calibration file: see :mod:`.video`.
 
 Frame rate, exposure and colour come from the source when it has them;
-``frame_rate``, ``exposure`` and ``color`` given here override them. A source
+``frame_rate``, ``exposure`` and ``color`` given here override them. Video files and
+KITTI's PNGs are camera output: sRGB unless their calibration says otherwise; a scene
+folder's ``camera.json`` states its encoding (linear when it has no ``"color"``). Frames are
+read linear; results are written back in the input's encoding. A source
 without an exposure time needs ``exposure`` (unless ``require_exposure=False``,
 then frames count as instantaneous, exposure 0).
 """
@@ -149,7 +152,8 @@ def open_source(
     exposure, frame_rate : float, optional
         Seconds and frames per second; override the source's.
     color : {'linear', 'srgb'}, optional
-        How the stored values encode irradiance; overrides the source's.
+        How the stored values encode irradiance; overrides the source's (video and KITTI:
+        'srgb' unless a ``camera.json`` calibration says; scene folders: their ``camera.json``).
     sequence : str or int, optional
         KITTI 2012/2015 sequence number, when the folder holds several.
     require_exposure : bool

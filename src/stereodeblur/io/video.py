@@ -5,7 +5,9 @@ next frame is sequential decoding; any other frame is a seek. At most a few
 recent frames per view stay in memory. Frame ``i`` of both videos is taken to be
 exposed at the same instant. The frame rate comes from the container (or
 ``frame_rate``); the camera from a calibration file
-(:mod:`stereodeblur.io.calibration`).
+(:mod:`stereodeblur.io.calibration`). The values are camera output, sRGB-encoded
+(:data:`~stereodeblur.io.frame_source.CAMERA_OUTPUT_COLOR`) unless the calibration (a
+``camera.json`` with ``"color"``) or ``color`` says otherwise: frames are linearised on reading.
 
 Lossless encodings that OpenCV writes and reads back bit-exactly (8-bit RGB):
 FFV1 (``.mkv``, ``.avi``), PNG (fourcc ``'png '``) and HuffYUV (``'HFYU'``).
@@ -23,7 +25,7 @@ import numpy as np
 from ..errors import InputError
 from .calibration import check_image_size, read_stereo_calibration
 from .files import quiet_stderr
-from .frame_source import FrameSource, camera_info
+from .frame_source import CAMERA_OUTPUT_COLOR, FrameSource, camera_info
 from .scene import check_frame_size
 
 CACHE_FRAMES = 4  # decoded frames kept per view
@@ -259,7 +261,7 @@ def open_video_pair(
         color=color,
         source_frame_rate=rates[0] if rates[0] is not None else calibration.frame_rate,
         source_exposure=calibration.exposure,
-        source_color=calibration.color,
+        source_color=calibration.color or CAMERA_OUTPUT_COLOR,
         require_exposure=require_exposure,
     )
     width, height = probes["left"]["size"]
