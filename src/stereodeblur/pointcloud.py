@@ -391,6 +391,9 @@ def _fill_gaps(depth: np.ndarray, index: np.ndarray) -> None:
     depth[filled] = best_depth[filled]
 
 
-def point_cloud_path(root: str | os.PathLike, view: str, index: int) -> Path:
-    """Where a clip run with point clouds puts the cloud of frame ``index`` of ``view``."""
-    return Path(root) / "pointcloud" / view / f"{int(index):06d}.ply"
+def point_cloud_path(
+    root: str | os.PathLike, view: str, index: int, *, name: str | None = None
+) -> Path:
+    """Where a clip run with point clouds puts the cloud of frame ``index`` of ``view``
+    (``NNNNNN.ply``, or ``name``.ply: the source's own frame name)."""
+    return Path(root) / "pointcloud" / view / f"{name or f'{int(index):06d}'}.ply"

@@ -75,11 +75,17 @@ def _sceneflow(tmp_path, source, *options):
     return out, result
 
 
-def _same_files(a, b, frame):
+def _same_files(a, b, frame, *, name=None):
+    """``a``'s files of ``frame`` (named ``name``, else NNNNNN) equal ``b``'s (NNNNNN)."""
+    name = name or f"{frame:06d}"
     for pattern in WRITTEN:
-        name = pattern.format(frame)
-        assert (a / name).read_bytes() == (b / name).read_bytes(), name
-    saved = [np.load(root / "sceneflow" / f"{frame:06d}.npz") for root in (a, b)]
+        path = pattern.format(frame)
+        other = path.replace(f"{frame:06d}", name)
+        assert (a / other).read_bytes() == (b / path).read_bytes(), other
+    saved = [
+        np.load(a / "sceneflow" / f"{name}.npz"),
+        np.load(b / "sceneflow" / f"{frame:06d}.npz"),
+    ]
     for key in ("labels", "normals", "twists", "occlusion"):
         np.testing.assert_array_equal(saved[0][key], saved[1][key], err_msg=key)
 
@@ -93,16 +99,25 @@ def from_scene(layouts, tmp_path_factory):
     }
 
 
+# Frame 1 of the clip in each source's numbers, and its name in the results.
+NUMBER = {"kitti-2015": 11, "kitti-2012": 11, "kitti-raw": 1, "video": 1}
+NAME = {"kitti-2015": "000000_11", "kitti-2012": "000000_11", "kitti-raw": "0000000001",
+        "video": "000001"}  # fmt: skip
+
+
 @pytest.mark.parametrize("kind", ["kitti-2015", "kitti-2012", "kitti-raw", "video"])
 def test_every_source_gives_the_scene_folders_scene_flow(kind, layouts, from_scene, tmp_path):
-    out, result = _sceneflow(tmp_path, layouts[kind], "--frames", "1")
-    assert "frame 1 -> 2" in result.stdout
-    _same_files(out, from_scene["scene-grey" if kind == "kitti-2012" else "scene"], 1)
+    """The same scene flow, in files named as the source names the frame."""
+    number = NUMBER[kind]
+    out, result = _sceneflow(tmp_path, layouts[kind], "--frames", str(number))
+    assert f"frame {number} -> {number + 1}" in result.stdout
+    reference = from_scene["scene-grey" if kind == "kitti-2012" else "scene"]
+    _same_files(out, reference, 1, name=NAME[kind])
 
 
 def test_kitti_needs_no_exposure_for_the_scene_flow(layouts, tmp_path):
-    out, _ = _sceneflow(tmp_path, layouts["kitti-2015"][:1], "--frames", "0")
-    assert (out / "sceneflow" / "000000.npz").is_file()
+    out, _ = _sceneflow(tmp_path, layouts["kitti-2015"][:1], "--frames", "10")
+    assert (out / "sceneflow" / "000000_10.npz").is_file()
 
 
 def test_a_frame_range_writes_one_file_of_each_kind_per_frame(layouts, from_scene, tmp_path):

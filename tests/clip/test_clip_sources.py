@@ -1,4 +1,5 @@
-"""The same clip as a scene folder, KITTI folders and two lossless videos deblurs the same."""
+"""The same clip as a scene folder, KITTI folders and two lossless videos deblurs the same;
+results keep the source's frame names and --frames counts in the source's numbers."""
 
 import pytest
 
@@ -11,8 +12,18 @@ from tests.io.stereo_layouts import (
     write_video_pair,
 )
 
+# A KITTI folder has no ground-truth motion: the quickest estimate instead.
+QUICK = ["--motion-source", "sceneflow", "--irls", "1", "--cg", "2", "--samples", "8"]
 ESTIMATED = ["--motion-source", "sceneflow", "--irls", "2", "--cg", "5", "--samples", "16"]
-FRAMES = ["--frames", "5:7", "--workers", "1", "-q"]
+FRAMES = ["--workers", "1", "-q"]
+# Frames 5 and 6 of the clip in each source's numbers, and their names in the results.
+SELECTED = {"scene": "5:7", "kitti-2015": "15:17", "kitti-raw": "5:7", "video": "5:7"}
+NAMES = {
+    "scene": ["000005", "000006"],
+    "kitti-2015": ["000000_15", "000000_16"],
+    "kitti-raw": ["0000000005", "0000000006"],
+    "video": ["000005", "000006"],
+}
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +58,8 @@ def layouts(clip_scene, tmp_path_factory):
 @pytest.fixture(scope="module")
 def scene_result(layouts, tmp_path_factory):
     out = tmp_path_factory.mktemp("from-scene") / "out"
-    result = run_cli("deblur", *layouts["scene"], "-o", out, *FRAMES, *ESTIMATED)
+    frames = ["--frames", SELECTED["scene"]]
+    result = run_cli("deblur", *layouts["scene"], "-o", out, *frames, *FRAMES, *ESTIMATED)
     assert result.code == 0, result.stderr
     assert len(frame_files(out)) == 4
     return out
@@ -55,18 +67,48 @@ def scene_result(layouts, tmp_path_factory):
 
 @pytest.mark.parametrize("kind", ["kitti-2015", "kitti-raw", "video"])
 def test_other_layouts_deblur_to_the_same_frames(kind, layouts, scene_result, tmp_path):
+    """Same values (sRGB by default, as the scene folder states), the source's own names."""
     out = tmp_path / "out"
-    result = run_cli("deblur", *layouts[kind], "-o", out, *FRAMES, *ESTIMATED)
+    frames = ["--frames", SELECTED[kind]]
+    result = run_cli("deblur", *layouts[kind], "-o", out, *frames, *FRAMES, *ESTIMATED)
     assert result.code == 0, result.stderr
-    assert frame_files(out) == frame_files(scene_result)
+    names = {f"{v}/{n}.png": f"{v}/{s}.png" for v in ("left", "right")
+             for n, s in zip(NAMES[kind], NAMES["scene"], strict=True)}  # fmt: skip
+    assert frame_files(out) == sorted(names)
+    assert frame_files(scene_result) == sorted(names.values())
     assert (out / "camera.json").read_text() == (scene_result / "camera.json").read_text()
-    for name in frame_files(out):
-        assert (out / name).read_bytes() == (scene_result / name).read_bytes(), name
+    assert '"color": "srgb"' in (out / "camera.json").read_text()
+    for name, same in names.items():
+        assert (out / name).read_bytes() == (scene_result / same).read_bytes(), name
+
+
+def test_a_kitti_run_resumes_by_its_frame_names(layouts, tmp_path):
+    """A second run over more frames skips those the first finished (named 000000_NN)."""
+    out = tmp_path / "out"
+    source = layouts["kitti-2015"]
+    first = run_cli("deblur", *source, "-o", out, "--frames", "15", *FRAMES, *QUICK)
+    assert first.code == 0, first.stderr
+    assert frame_files(out) == ["left/000000_15.png", "right/000000_15.png"]
+    written = (out / "left" / "000000_15.png").stat().st_mtime_ns
+    second = run_cli("deblur", *source, "-o", out, "--frames", "15:17", *FRAMES, *QUICK)
+    assert second.code == 0, second.stderr
+    assert "2 already done" in second.stdout
+    assert (out / "left" / "000000_15.png").stat().st_mtime_ns == written
+    assert frame_files(out)[1] == "left/000000_16.png" and len(frame_files(out)) == 4
+
+
+def test_frames_outside_the_sources_numbers_are_refused(layouts, tmp_path):
+    """KITTI 2015's frames are numbered from 10 here: frame 5 is not one of them."""
+    result = run_cli("deblur", *layouts["kitti-2015"], "-o", tmp_path / "out", "--frames", "5",
+                     *FRAMES, *QUICK)  # fmt: skip
+    assert result.code == 2
+    assert "frame 5 is not in 10..21" in result.stderr
 
 
 def test_kitti_without_exposure_is_a_one_line_error(layouts, tmp_path):
     out = tmp_path / "out"
-    result = run_cli("deblur", layouts["kitti-2015"][0], "-o", out, *FRAMES, *ESTIMATED)
+    frames = ["--frames", SELECTED["kitti-2015"]]
+    result = run_cli("deblur", layouts["kitti-2015"][0], "-o", out, *frames, *FRAMES, *ESTIMATED)
     assert result.code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "--exposure" in lines[0] and "kitti" in lines[0]

@@ -61,3 +61,27 @@ def test_long_selection_of_several_pieces_is_refused_before_it_is_expanded():
     assert parse_frames("0:3,5:8", 10**15) == (0, 1, 2, 5, 6, 7)
     with pytest.raises(InputError, match="at most 10000000"):
         parse_frames("0:3,5:", 10**15)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (None, range(3)),
+        ("10", range(0, 1)),
+        ("11:", range(1, 3)),
+        (":12", range(0, 2)),
+        ("12,10", (0, 2)),
+    ],
+)
+def test_selections_count_in_the_sources_numbers(text, expected):
+    """A clip numbered from 10 (KITTI 2015's frames 10, 11, 12): numbers in, indices out."""
+    assert parse_frames(text, 3, first=10) == expected
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [("0", "frame 0 is not in 10..12"), ("9:11", "within 10:13; the clip has frames 10..12")],
+)
+def test_numbers_outside_the_sources_are_refused(text, message):
+    with pytest.raises(InputError, match=message):
+        parse_frames(text, 3, first=10)

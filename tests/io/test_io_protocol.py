@@ -22,6 +22,7 @@ from tests.io.stereo_layouts import to_u8, write_kitti_2015, write_video_pair
 K = np.array([[40.0, 0.0, 15.5], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]])
 MEMBERS = [
     "root", "name", "kind", "paths", "warnings", "info", "num_frames", "shape", "channels",
+    "numbering",
     "read_frame", "frame_label", "has_gt", "gt_path", "read_gt_disparity", "read_gt_flow",
     "read_gt_mixed", "read_gt_sharp", "describe",
 ]  # fmt: skip

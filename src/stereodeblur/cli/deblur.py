@@ -8,7 +8,7 @@ import sys
 from ..errors import InputError, StorageError
 from ..settings import DASK_CONNECT_TIMEOUT
 from .base import EXIT_FAILED, EXIT_USAGE, add_quiet, integer
-from .printer import print_warnings, progress_printer
+from .printer import print_compile_notice, print_warnings, progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
 from .sources import (
     add_frames_option,
@@ -92,15 +92,25 @@ def run(args: argparse.Namespace) -> int:
     source = open_source(spec)
     written = [*views_of(args), *(["pointcloud"] if args.point_cloud else [])]
     check_output(args.output, input_paths(spec), subfolders=written, command="deblur")
-    frames = None if args.frames is None else select_frames(args.frames, source.num_frames)
+    frames = None if args.frames is None else select_frames(args.frames, source)
     views = views_of(args)
+    print_compile_notice(args.quiet, _kernel_modules(settings))
     if args.sceneflow:
         return _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views)
-    return _deblur_clip(args, settings, spec, frames, views, shown=source.warnings)
+    return _deblur_clip(args, settings, spec, frames, views, source)
 
 
-def _deblur_clip(args, settings, spec, frames, views, *, shown=()) -> int:
-    """Run :func:`~stereodeblur.clip.deblur_clip`; print its warnings not ``shown`` yet."""
+def _kernel_modules(settings) -> tuple[str, ...]:
+    """The modules whose kernels a run with ``settings`` compiles first."""
+    from .._kernel_cache import DEBLUR_MODULES, SCENEFLOW_MODULES
+
+    estimated = settings.motion_source == "sceneflow"
+    return DEBLUR_MODULES + (SCENEFLOW_MODULES if estimated else ())
+
+
+def _deblur_clip(args, settings, spec, frames, views, source) -> int:
+    """Run :func:`~stereodeblur.clip.deblur_clip`; print its warnings ``source`` has not shown
+    yet; frames are named in the source's numbers."""
     from ..clip import deblur_clip
 
     try:
@@ -124,14 +134,15 @@ def _deblur_clip(args, settings, spec, frames, views, *, shown=()) -> int:
             file=sys.stderr,
         )
         return EXIT_FAILED
-    print_warnings(w for w in report.warnings if w not in shown)
+    print_warnings(w for w in report.warnings if w not in source.warnings)
     failed = report.failed
     if failed:
         first = failed[0]
         log = f"; see {report.log}" if report.log is not None and report.log.is_file() else ""
         print(
             f"stereodeblur: error: {len(failed)} of {len(report.records)} frame(s) failed "
-            f"(first: frame {first.index} {first.view}: {first.error}){log}",
+            f"(first: frame {source.numbering.number(first.index)} {first.view}: {first.error})"
+            f"{log}",
             file=sys.stderr,
         )
         return EXIT_USAGE if all(r.input_error for r in failed) else EXIT_FAILED
@@ -164,7 +175,13 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
         )
     check_output(args.output, [args.sceneflow], command="deblur")
     progress = progress_printer(args.quiet)
-    writer = SceneWriter(args.output, source.info, overwrite=args.overwrite, protect=[source.root])
+    writer = SceneWriter(
+        args.output,
+        source.info,
+        overwrite=args.overwrite,
+        protect=[source.root],
+        numbering=source.numbering,
+    )
     stereo = deblur_stereo_frame(
         source, index, views=views, settings=settings, sceneflow=sceneflow, progress=progress
     )

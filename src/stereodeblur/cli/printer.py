@@ -9,6 +9,7 @@ with ``-q``: they say something about the result.
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Iterable
 
@@ -31,8 +32,13 @@ class ProgressPrinter:
         self.start = time.perf_counter()
         self._last_stage: str | None = None
         self._last_time = -float("inf")
+        self._lock = threading.Lock()  # reports of worker processes arrive on a thread
 
     def __call__(self, progress: Progress) -> None:
+        with self._lock:
+            self._print(progress)
+
+    def _print(self, progress: Progress) -> None:
         now = time.perf_counter()
         counted = isinstance(progress, Progress) and progress.total > 0
         if counted and progress.stage == self._last_stage and progress.done < progress.total:
@@ -47,6 +53,18 @@ class ProgressPrinter:
 def progress_printer(quiet: bool) -> ProgressCallback | None:
     """A :class:`ProgressPrinter`, or None when ``quiet``."""
     return None if quiet else ProgressPrinter()
+
+
+COMPILE_NOTICE = "compiling the numba kernels once (about a minute); later runs reuse them"
+
+
+def print_compile_notice(quiet: bool, modules) -> None:
+    """Say on stderr, before the first frame, that this run compiles the kernels of
+    ``modules`` (numba's cache holds none of them yet); nothing with ``quiet``."""
+    from .._kernel_cache import kernels_cached
+
+    if not quiet and not kernels_cached(modules):
+        print(f"stereodeblur: {COMPILE_NOTICE}", file=sys.stderr, flush=True)
 
 
 def print_warnings(messages: Iterable[str]) -> None:

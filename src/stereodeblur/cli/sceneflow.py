@@ -6,7 +6,7 @@ import argparse
 
 from ..errors import InputError
 from .base import add_quiet
-from .printer import print_warnings, progress_printer
+from .printer import print_compile_notice, print_warnings, progress_printer
 from .settings_options import add_settings_options, settings_from_arguments
 from .sources import (
     add_frames_option,
@@ -33,8 +33,8 @@ def add_parser(sub) -> None:
         help="estimate the piecewise-rigid scene flow of frames",
         description="Estimate planes, rigid motions and occlusion of the left view of each "
         "frame (towards the next frame; the last frame towards the previous one) and write "
-        "them in the layout of a scene's gt/, one file of each kind per frame. Reads every "
-        "source 'deblur' reads.",
+        "them in the layout of a scene's gt/, one file of each kind per frame, named as the source "
+        "names the frame. Reads every source 'deblur' reads.",
     )
     add_source_argument(p)
     p.add_argument("-o", "--output", required=True, help="output folder")
@@ -43,7 +43,7 @@ def add_parser(sub) -> None:
         "--debug-dir",
         metavar="DIR",
         help="also write captioned pictures of the segments, disparity, flow and occlusion of "
-        "each frame into DIR/NNNNNN/ (default: none)",
+        "each frame into DIR/NAME/, NAME the frame's (default: none)",
     )
     add_quiet(p)
     add_source_options(p, require_exposure=False)
@@ -55,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
     import warnings
     from pathlib import Path
 
+    from .._kernel_cache import SCENEFLOW_MODULES
     from ..io.outputs import check_output
     from ..pipeline import neighbour_of
     from ..sceneflow.estimate import SceneFlowWarning, estimate_scene_flow
@@ -65,16 +66,18 @@ def run(args: argparse.Namespace) -> int:
     source = open_source(spec)
     if source.num_frames < 2:
         raise InputError(f"{source.root}: the scene flow needs two frames, the clip has one")
-    frames = select_frames(args.frames, source.num_frames)
+    frames = select_frames(args.frames, source)
     protect = input_paths(spec)
     check_output(args.output, protect, subfolders=SUBFOLDERS, command="sceneflow")
     if args.debug_dir is not None:
         check_output(args.debug_dir, protect, command="sceneflow")
     progress = progress_printer(args.quiet)
+    print_compile_notice(args.quiet, SCENEFLOW_MODULES)
     for index in frames:
         neighbour = neighbour_of(index, source.num_frames)
         images = [source.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
-        debug = None if args.debug_dir is None else Path(args.debug_dir) / f"{index:06d}"
+        name = source.numbering.name(index)
+        debug = None if args.debug_dir is None else Path(args.debug_dir) / name
         with warnings.catch_warnings():  # printed below as one line each
             warnings.simplefilter("ignore", SceneFlowWarning)
             estimate = estimate_scene_flow(
@@ -85,9 +88,10 @@ def run(args: argparse.Namespace) -> int:
                 progress=progress,
                 debug_dir=debug,
             )
-        print_warnings(f"frame {index}: {message}" for message in estimate.warnings)
-        written = write_sceneflow_outputs(args.output, estimate.sceneflow, index)
-        print(f"scene flow of frame {index} -> {neighbour} written to {args.output}")
+        number, next_number = (source.numbering.number(i) for i in (index, neighbour))
+        print_warnings(f"frame {number}: {message}" for message in estimate.warnings)
+        written = write_sceneflow_outputs(args.output, estimate.sceneflow, index, name=name)
+        print(f"scene flow of frame {number} -> {next_number} written to {args.output}")
         for path in written.values():
             print(f"  {path}")
     return 0

@@ -20,8 +20,10 @@ SOURCE_OPTIONS = {
 
 SOURCE_HELP = "input: a scene folder, a KITTI 2012/2015/raw folder, or two videos LEFT RIGHT"
 FRAMES_SYNTAX = (
-    "one frame '5', a list '1,3' or half-open ranges '10:200' ('4:' to the last), "
-    "counted from 0 in the clip"
+    "one frame '5', a list '1,3' or half-open ranges '10:200' ('4:' to the last), in the "
+    "source's own numbers: a scene's or a video's from 0, a KITTI raw drive's file numbers, "
+    "KITTI 2012/2015's frame numbers in the sequence (10, 11 for the image pairs); results "
+    "keep the source's frame names"
 )
 
 # What the exposure time is when neither the source nor --exposure gives one.
@@ -115,12 +117,12 @@ def input_paths(spec) -> list[str]:
     return [*spec.paths, *([spec.calib] if spec.calib else [])]
 
 
-def select_frames(text: str | None, num_frames: int):
-    """``--frames`` checked against the clip (before the selection is expanded); every frame
-    for None."""
+def select_frames(text: str | None, source):
+    """The indices of the frames ``--frames`` selects, in ``source``'s own numbers, checked
+    against the clip (before the selection is expanded); every frame for None."""
     from ..clip.frames import parse_frames
 
     try:
-        return parse_frames(text, num_frames)
+        return parse_frames(text, source.num_frames, first=source.numbering.first)
     except InputError as err:
         raise InputError(f"--{err}") from None

@@ -6,9 +6,11 @@ not yet finished. Frame i uses frames i and i + 1; the last frame uses i - 1.
 
 Output
 ------
-``OUT`` is a scene (SCENE_FORMAT.md) with the source's ``camera.json``; a task writes
-``OUT/VIEW/NNNNNN.png`` (16 bit) through a temporary file and a rename, after
-``OUT/pointcloud/VIEW/NNNNNN.ply`` when point clouds are asked for, so a frame whose PNG
+``OUT`` is a scene (SCENE_FORMAT.md) with the source's ``camera.json`` (its colour encoding
+too: results are written back in the input's); a task writes ``OUT/VIEW/NAME.png`` (16 bit,
+``NAME`` the source's own frame name: ``NNNNNN``, KITTI's ``000005_10`` or ``0000000042``,
+:mod:`stereodeblur.io.numbering`) through a temporary file and a rename, after
+``OUT/pointcloud/VIEW/NAME.ply`` when point clouds are asked for, so a frame whose PNG
 exists and is complete is finished. Re-running skips finished frames unless ``overwrite``; a
 killed run loses at most the frames in flight. ``OUT/run-log.jsonl`` records every run
 (:mod:`stereodeblur.clip.runlog`); ``OUT/.lock`` keeps a second run out while one runs.

@@ -7,7 +7,8 @@ flight are lost, finished frames stay.
 
 ``SerialExecutor`` runs the tasks here. ``PoolExecutor(workers)`` runs them in spawned worker
 processes, each with ``cores // workers`` numba and OpenCV threads; the workers watch this
-process and end with it (:func:`~stereodeblur.clip.worker.watch_parent`); a worker that dies
+process and end with it (:func:`~stereodeblur.clip.worker.watch_parent`) and send the stages'
+progress of their tasks back through a queue (shown as a serial run shows it); a worker that dies
 (killed, out of memory) has its tasks run again in a new pool. ``DaskExecutor(address)``
 sends them to an existing Dask distributed cluster, whose workers open the input and write
 the output themselves (both paths must be the same on every worker: a shared file system);
@@ -29,6 +30,7 @@ from collections.abc import Iterator, Sequence
 from typing import Protocol
 
 from ..errors import InputError
+from ..progress import ProgressCallback
 from ..settings import DASK_CONNECT_TIMEOUT, NUM_SAMPLES
 from .job import ClipJob, FrameRecord, Task
 from .worker import cores, init_worker, process_task
@@ -43,7 +45,11 @@ FRAME_MEMORY_640x480 = 0.8e9
 class Executor(Protocol):
     """Runs the tasks of a clip job and yields a record per view as it finishes."""
 
-    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]: ...
+    def run(
+        self, job: ClipJob, tasks: Sequence[Task], progress: ProgressCallback | None = None
+    ) -> Iterator[FrameRecord]:
+        """Records of ``tasks`` as they finish; the stages' progress to ``progress``."""
+        ...
 
 
 def _available_memory() -> float | None:
@@ -78,9 +84,11 @@ def default_workers(shape, *, num_samples: int = NUM_SAMPLES, num_tasks: int | N
 class SerialExecutor:
     """Every task in this process, one after the other."""
 
-    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]:
+    def run(
+        self, job: ClipJob, tasks: Sequence[Task], progress: ProgressCallback | None = None
+    ) -> Iterator[FrameRecord]:
         for index, views in tasks:
-            yield from process_task(job, index, views)
+            yield from process_task(job, index, views, progress=progress)
 
 
 def _terminate(pool) -> None:
@@ -133,6 +141,37 @@ def _interrupts_deferred() -> Iterator[None]:
                 signal.raise_signal(sig)
 
 
+@contextlib.contextmanager
+def _forwarded(progress: ProgressCallback | None) -> Iterator[object]:
+    """A queue for the pool workers' progress reports, drained onto ``progress`` by a thread
+    while the block runs (None and no thread without ``progress``)."""
+    if progress is None:
+        yield None
+        return
+    queue = multiprocessing.get_context("spawn").Queue()
+
+    def drain() -> None:
+        while True:
+            try:
+                report = queue.get()
+            except (EOFError, OSError):  # the queue was closed
+                return
+            if report is None:
+                return
+            with contextlib.suppress(Exception):  # a failing printer stops no run
+                progress(report)
+
+    thread = threading.Thread(target=drain, daemon=True, name="worker-progress")
+    thread.start()
+    try:
+        yield queue
+    finally:
+        queue.put(None)
+        thread.join(timeout=5)
+        queue.close()
+        queue.cancel_join_thread()
+
+
 class PoolExecutor:
     """Tasks in ``workers`` spawned local processes that end when this process ends."""
 
@@ -141,13 +180,16 @@ class PoolExecutor:
             raise InputError(f"workers must be at least 1, got {workers}")
         self.workers = int(workers)
 
-    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]:
+    def run(
+        self, job: ClipJob, tasks: Sequence[Task], progress: ProgressCallback | None = None
+    ) -> Iterator[FrameRecord]:
         remaining = list(tasks)
         for attempt in range(MAX_POOL_RESTARTS + 1):
             if not remaining:
                 return
             broken: list[Task] = []
-            yield from self._one_pool(job, remaining, broken)
+            with _forwarded(progress) as queue:
+                yield from self._one_pool(job, remaining, broken, queue)
             remaining = sorted(broken)
             if remaining and attempt == MAX_POOL_RESTARTS:
                 for index, views in remaining:
@@ -159,7 +201,7 @@ class PoolExecutor:
                             error="a worker process died (killed or out of memory)",
                         )
 
-    def _one_pool(self, job, tasks, broken: list) -> Iterator[FrameRecord]:
+    def _one_pool(self, job, tasks, broken: list, queue) -> Iterator[FrameRecord]:
         from concurrent.futures import ProcessPoolExecutor, as_completed
         from concurrent.futures.process import BrokenProcessPool
 
@@ -168,7 +210,7 @@ class PoolExecutor:
             max_workers=max(1, min(self.workers, len(tasks))),
             mp_context=multiprocessing.get_context("spawn"),
             initializer=init_worker,
-            initargs=(threads, os.getpid()),
+            initargs=(threads, os.getpid(), queue),
         )
         try:
             with _interrupts_deferred():  # submitting spawns the workers
@@ -314,7 +356,10 @@ class DaskExecutor:
         if self.client is None:
             self.client = _dask_client(self.address)
 
-    def run(self, job: ClipJob, tasks: Sequence[Task]) -> Iterator[FrameRecord]:
+    def run(
+        self, job: ClipJob, tasks: Sequence[Task], progress: ProgressCallback | None = None
+    ) -> Iterator[FrameRecord]:
+        """Records of ``tasks``; the stages' progress stays on the cluster's workers."""
         from distributed import as_completed
 
         self.connect()

@@ -1,7 +1,9 @@
 """Frame selections: ``'1,3,5'``, ``'2:10'``, ``'4:'`` checked against a clip's length.
 
 Ranges are half open (``'2:10'`` is frames 2 to 9) and checked before they are expanded, so a
-selection costs memory in proportion to the clip, never to the numbers typed.
+selection costs memory in proportion to the clip, never to the numbers typed. The numbers are
+the source's own (:mod:`stereodeblur.io.numbering`: KITTI 2015's frames 10 and 11); the
+selection is returned as indices, counted from 0.
 """
 
 from __future__ import annotations
@@ -26,33 +28,36 @@ def _bound(text: str, value: str, default: int) -> int:
     return int(value)
 
 
-def _parts(text: str, num_frames: int) -> list[range]:
-    """The selection's pieces as ranges, each checked against ``0..num_frames - 1``."""
-    last = num_frames - 1
+def _parts(text: str, num_frames: int, first: int) -> list[range]:
+    """The selection's pieces as ranges of indices, each number checked against
+    ``first..first + num_frames - 1``."""
+    end = first + num_frames
+    last = end - 1
     pieces = []
     for part in text.split(","):
         if ":" in part:
             start_text, _, stop_text = part.partition(":")
-            start = _bound(text, start_text, 0)
-            stop = _bound(text, stop_text, num_frames)
-            if not 0 <= start <= last or not start < stop <= num_frames:
+            start = _bound(text, start_text, first)
+            stop = _bound(text, stop_text, end)
+            if not first <= start <= last or not start < stop <= end:
                 raise InputError(
                     f"frames {text!r}: range {part.strip()!r} (end exclusive) must lie within "
-                    f"0:{num_frames}; the clip has frames 0..{last}"
+                    f"{first}:{end}; the clip has frames {first}..{last}"
                 )
-            pieces.append(range(start, stop))
+            pieces.append(range(start - first, stop - first))
         else:
             if not part.strip():
                 raise InputError(f"frames {text!r}: empty entry; give e.g. '1,3' or '2:10'")
-            index = _bound(text, part, -1)
-            if not 0 <= index <= last:
-                raise InputError(f"frames {text!r}: frame {index} is not in 0..{last}")
-            pieces.append(range(index, index + 1))
+            number = _bound(text, part, first - 1)
+            if not first <= number <= last:
+                raise InputError(f"frames {text!r}: frame {number} is not in {first}..{last}")
+            pieces.append(range(number - first, number - first + 1))
     return pieces
 
 
-def parse_frames(text: str | None, num_frames: int) -> range | tuple[int, ...]:
-    """Frames selected by ``text`` in a clip of ``num_frames`` frames, sorted and unique.
+def parse_frames(text: str | None, num_frames: int, *, first: int = 0) -> range | tuple[int, ...]:
+    """Indices of the frames selected by ``text`` in a clip of ``num_frames`` frames whose
+    first is numbered ``first``, sorted and unique.
 
     Parameters
     ----------
@@ -61,27 +66,32 @@ def parse_frames(text: str | None, num_frames: int) -> range | tuple[int, ...]:
         left out: ``'4:'`` is frame 4 to the last). None selects every frame.
     num_frames : int
         Frames in the clip.
+    first : int
+        The source's number of the clip's first frame (:mod:`stereodeblur.io.numbering`);
+        ``text`` counts in these numbers.
 
     Returns
     -------
     range or tuple of int
-        A ``range`` when the selection is contiguous, else a tuple.
+        Indices (counted from 0): a ``range`` when the selection is contiguous, else a tuple.
 
     Raises
     ------
     InputError
-        For text that is not a selection or a frame outside ``0..num_frames - 1``; the
-        message names the text and the clip's frame range.
+        For text that is not a selection or a frame outside ``first..first + num_frames - 1``;
+        the message names the text and the clip's frame numbers.
     """
     if isinstance(num_frames, bool) or not isinstance(num_frames, int) or num_frames < 1:
         raise InputError(f"the clip must have at least one frame, got num_frames={num_frames!r}")
+    if isinstance(first, bool) or not isinstance(first, int) or first < 0:
+        raise InputError(f"first must be an integer >= 0, got {first!r}")
     if text is None:
         return range(num_frames)
     if not isinstance(text, str):
         raise InputError(f"frames must be text like '1,3' or '2:10', got {type(text).__name__}")
     if len(text) > MAX_TEXT:
         raise InputError(f"frames: selection of {len(text)} characters, at most {MAX_TEXT}")
-    pieces = sorted(_parts(text, num_frames), key=lambda r: r.start)
+    pieces = sorted(_parts(text, num_frames, first), key=lambda r: r.start)
     merged = [pieces[0]]
     for piece in pieces[1:]:
         if piece.start <= merged[-1].stop:

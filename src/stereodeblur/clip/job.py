@@ -18,12 +18,14 @@ from pathlib import Path
 from ..errors import InputError
 from ..geometry.camera import VIEWS
 from ..io.formats import read_png_header
+from ..io.numbering import SCENE_NUMBERING, FrameNumbering
 from ..io.sources import SourceSpec
 
 # The last 12 bytes of every complete PNG: the empty IEND chunk with its CRC.
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
-# Temporary names of io.formats' atomic writer: ".NAME.HEX.tmp".
-_TEMPORARY = re.compile(r"^\.\d{6}\.(png|ply)\.[0-9a-f]+\.tmp$")
+# Temporary names of io.formats' atomic writer: ".NAME.HEX.tmp" (NAME: a frame's, e.g.
+# 000005, KITTI's 000005_10 or 0000000042).
+_TEMPORARY = re.compile(r"^\.\d[\d_]*\.(png|ply)\.[0-9a-f]+\.tmp$")
 
 Task = tuple[int, tuple[str, ...]]
 
@@ -38,6 +40,7 @@ class ClipJob:
     point_cloud: bool = False
     run_id: str = ""  # sources and writers are cached per process and run
     shape: tuple[int, int] | None = None  # (height, width) of a finished frame
+    numbering: FrameNumbering = SCENE_NUMBERING  # the source's frame names, kept by results
 
 
 @dataclass(frozen=True)
@@ -107,9 +110,10 @@ def frame_outputs(job: ClipJob, index: int, view: str) -> list[Path]:
     from ..io.scene import scene_path
     from ..pointcloud import point_cloud_path
 
-    paths = [scene_path(job.output, "frame", view, index)]
+    paths = [scene_path(job.output, "frame", view, index, numbering=job.numbering)]
     if job.point_cloud:
-        paths.insert(0, point_cloud_path(job.output, view, index))
+        name = job.numbering.name(index)
+        paths.insert(0, point_cloud_path(job.output, view, index, name=name))
     return paths
 
 

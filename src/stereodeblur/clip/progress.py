@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
+from ..io.numbering import SCENE_NUMBERING, FrameNumbering
 from ..progress import ProgressCallback, report
 from .job import FrameRecord
 
@@ -16,13 +17,22 @@ def _clock(seconds: float) -> str:
 
 class ProgressBar:
     """Frames done, rate and ETA on ``stream``: one redrawn line on a terminal, else a
-    line per frame."""
+    line per frame (named by the source's numbers, ``numbering``)."""
 
-    def __init__(self, total: int, *, skipped: int = 0, stream=None, width: int = 24):
+    def __init__(
+        self,
+        total: int,
+        *,
+        skipped: int = 0,
+        stream=None,
+        width: int = 24,
+        numbering: FrameNumbering = SCENE_NUMBERING,
+    ):
         self.total = total
         self.skipped = skipped
         self.stream = sys.stderr if stream is None else stream
         self.width = width
+        self.numbering = numbering
         self.done = 0
         self.failed = 0
         self.start = time.perf_counter()
@@ -50,9 +60,9 @@ class ProgressBar:
             print("\r" + self.line(), end="", file=self.stream, flush=True)
         else:
             what = "done" if record.status == "done" else f"FAILED ({record.error})"
+            number = self.numbering.number(record.index)
             print(
-                f"frame {record.index} {record.view} {what} in {record.seconds:.1f} s | "
-                + self.line(),
+                f"frame {number} {record.view} {what} in {record.seconds:.1f} s | " + self.line(),
                 file=self.stream,
                 flush=True,
             )
@@ -64,30 +74,35 @@ class ProgressBar:
 
 class ReportProgress:
     """The clip's progress as :class:`~stereodeblur.progress.Progress` reports to a callback:
-    stage ``"frame I VIEW done"`` (or ``failed``), views finished of ``total``."""
+    stage ``"frame N VIEW done"`` (or ``failed``; ``N`` the source's number), views finished
+    of ``total``."""
 
-    def __init__(self, progress: ProgressCallback, total: int):
+    def __init__(
+        self, progress: ProgressCallback, total: int, numbering: FrameNumbering = SCENE_NUMBERING
+    ):
         self.progress = progress
+        self.numbering = numbering
         self.total = total
         self.finished = 0
 
     def update(self, record: FrameRecord) -> None:
         self.finished += 1
-        stage = f"frame {record.index} {record.view} {record.status}"
+        stage = f"frame {self.numbering.number(record.index)} {record.view} {record.status}"
         report(self.progress, stage, self.finished, self.total)
 
     def close(self) -> None:
         pass
 
 
-def make_progress(progress, total: int, skipped: int):
-    """A bar on stderr (``True``), on a stream, reports to a callable, or None (``False``)."""
+def make_progress(progress, total: int, skipped: int, numbering: FrameNumbering = SCENE_NUMBERING):
+    """A bar on stderr (``True``), on a stream, reports to a callable, or None (``False``);
+    frames named by ``numbering``."""
     if not progress or total == 0:
         return None
     if progress is True:
-        return ProgressBar(total, skipped=skipped)
+        return ProgressBar(total, skipped=skipped, numbering=numbering)
     if hasattr(progress, "write"):
-        return ProgressBar(total, skipped=skipped, stream=progress)
+        return ProgressBar(total, skipped=skipped, stream=progress, numbering=numbering)
     if callable(progress):
-        return ReportProgress(progress, total)
+        return ReportProgress(progress, total, numbering)
     raise TypeError(f"progress must be a bool, a stream or a callable, got {progress!r}")

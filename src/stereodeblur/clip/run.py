@@ -209,9 +209,9 @@ def _start_event(plan, job, identity, tasks, skipped, workers, scheduler, comman
     }
 
 
-def _run_tasks(log, executor, job, tasks, bar, on_frame) -> list[FrameRecord]:
+def _run_tasks(log, executor, job, tasks, bar, on_frame, stages) -> list[FrameRecord]:
     records: list[FrameRecord] = []
-    runner = executor.run(job, tasks) if tasks else iter(())
+    runner = executor.run(job, tasks, stages) if tasks else iter(())
     try:
         for record in runner:
             records.append(record)
@@ -239,6 +239,14 @@ def _run_tasks(log, executor, job, tasks, bar, on_frame) -> list[FrameRecord]:
     return records
 
 
+def _stage_progress(progress):
+    """Where the stages' progress of each frame goes: a callable ``progress`` gets it; a bar
+    (True, a stream) shows frames only."""
+    if progress is True or not progress or hasattr(progress, "write"):
+        return None
+    return progress if callable(progress) else None
+
+
 def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
     """The run proper, with the output locked."""
     from ..io.scene import SceneWriter
@@ -248,7 +256,11 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
     identity = json.loads(json.dumps(identity, default=str))  # as the log stores it
     notes = list(plan.notes) + _check_identity(output, identity, options["overwrite"])
     SceneWriter(
-        output, plan.scene.info, overwrite=options["overwrite"], protect=_inputs(spec, plan.scene)
+        output,
+        plan.scene.info,
+        overwrite=options["overwrite"],
+        protect=_inputs(spec, plan.scene),
+        numbering=plan.scene.numbering,
     )
     mark_output(output, "deblur")
     notes += [f"removed the half-written {p}" for p in remove_temporaries(output)]
@@ -259,6 +271,7 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
         options["point_cloud"],
         run_id=uuid.uuid4().hex,
         shape=tuple(plan.scene.shape),
+        numbering=plan.scene.numbering,
     )
     pairs = [(i, v) for i in plan.frames for v in views]
     skipped = [] if options["overwrite"] else [p for p in pairs if is_finished(job, *p)]
@@ -270,7 +283,7 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
         )
     executor = options.get("executor") or make_executor(workers, scheduler)
     todo = sum(len(v) for _, v in tasks)
-    bar = make_progress(options["progress"], todo, len(skipped))
+    bar = make_progress(options["progress"], todo, len(skipped), plan.scene.numbering)
     start = time.perf_counter()
     with RunLogWriter(output / RUN_LOG) as log:
         log.write(
@@ -279,7 +292,8 @@ def _run_locked(spec, plan, output: Path, options: dict) -> ClipReport:
             )
         )
         try:
-            records = _run_tasks(log, executor, job, tasks, bar, options["on_frame"])
+            stages = _stage_progress(options["progress"])
+            records = _run_tasks(log, executor, job, tasks, bar, options["on_frame"], stages)
         except StorageError:  # the executor has stopped: remove what its frames left
             remove_temporaries(output)
             raise
@@ -336,8 +350,9 @@ def deblur_clip(
     scheduler : str, optional
         Address of a Dask scheduler, ``tcp://HOST:PORT``; excludes ``workers``.
     progress : bool, file or callable
-        Progress bar on stderr (True), on a given stream, ``Progress`` reports to a callable,
-        or none (False).
+        Progress bar on stderr (True), on a given stream, ``Progress`` reports to a callable
+        (the frames finished, and the stages of each frame, also from worker processes), or
+        none (False).
     on_frame : callable, optional
         Called with every :class:`FrameRecord` as it arrives.
     command : list of str, optional

@@ -5,6 +5,9 @@ A worker process watches its parent: on Linux the kernel kills it when the paren
 worker when the parent has gone, so no worker outlives a run whose main process was killed.
 Library messages that a task prints on the standard error (OpenCV, libpng, FFmpeg) and
 Python warnings are kept off the terminal: they go into the task's records and the run log.
+The stages' progress of a task (motion, operator, deconvolution) goes to the ``progress``
+callback it is given or, in a pool worker, to the queue the pool gave the worker at its start
+(:func:`init_worker`), which the parent drains onto its own callback.
 """
 
 from __future__ import annotations
@@ -23,12 +26,15 @@ import warnings
 from collections.abc import Iterator
 
 from ..errors import InputError, StorageError
+from ..progress import Progress, ProgressCallback
 from .job import ClipJob, FrameRecord
 
 PARENT_POLL_SECONDS = 0.5
 _PR_SET_PDEATHSIG = 1
 
 _OPEN: dict = {}
+# The queue this pool worker sends its tasks' progress reports to (None: not in a pool).
+_PROGRESS_QUEUE = None
 
 
 # --------------------------------------------------------------------------- worker start
@@ -62,15 +68,18 @@ def watch_parent(parent: int) -> None:
     threading.Thread(target=_poll_parent, args=(parent,), daemon=True, name="watch-parent").start()
 
 
-def init_worker(threads: int, parent: int) -> None:
+def init_worker(threads: int, parent: int, progress_queue=None) -> None:
     """Pool worker start: watch the parent and use ``threads`` threads; interrupts and
-    terminations are the parent's job.
+    terminations are the parent's job. The tasks' progress reports go to ``progress_queue``
+    (a ``multiprocessing`` queue the parent drains), if given.
 
     numba, numpy and OpenCV are loaded before this runs (unpickling it imports the package),
     so the thread counts are set through their calls (:func:`set_threads`), not the
     environment: a ``NUMBA_NUM_THREADS`` that differs from numba's once its threads run makes
     every later compilation fail."""
+    global _PROGRESS_QUEUE
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _PROGRESS_QUEUE = progress_queue
     watch_parent(parent)
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
     set_threads(threads)
@@ -114,18 +123,37 @@ def _dask_threads(host_threads: dict | None) -> int | None:
 
 
 @contextlib.contextmanager
-def captured_stderr(lines: list[str]) -> Iterator[None]:
+def captured_stderr(lines: list[str]) -> Iterator[object]:
     """Send what this process writes on the standard error (file descriptor 2 and
-    ``sys.stderr``) into ``lines``, one entry per line."""
+    ``sys.stderr``) into ``lines``, one entry per line.
+
+    Yields ``shown(callback)``: ``callback`` wrapped to write on the real standard error
+    while it runs (a progress printer called from inside the block)."""
     with contextlib.suppress(Exception):
         sys.stderr.flush()
     saved = os.dup(2)
     text = io.StringIO()
+    original = sys.stderr
     with tempfile.TemporaryFile() as sink:
+
+        def shown(callback):
+            def call(*args):
+                os.dup2(saved, 2)
+                captured, sys.stderr = sys.stderr, original
+                try:
+                    callback(*args)
+                finally:
+                    with contextlib.suppress(Exception):
+                        original.flush()
+                    sys.stderr = captured
+                    os.dup2(sink.fileno(), 2)
+
+            return None if callback is None else call
+
         os.dup2(sink.fileno(), 2)
         try:
             with contextlib.redirect_stderr(text):
-                yield
+                yield shown
         finally:
             os.dup2(saved, 2)
             os.close(saved)
@@ -144,17 +172,28 @@ def _open(job: ClipJob):
         from ..io.scene import SceneWriter
 
         source = job.source.open()
-        writer = SceneWriter(job.output, source.info, overwrite=True)
+        writer = SceneWriter(job.output, source.info, overwrite=True, numbering=source.numbering)
         _OPEN.clear()
         _OPEN[key] = (source, writer)
     return _OPEN[key]
 
 
-def _deblur_views(source, index: int, views: tuple[str, ...], job: ClipJob) -> dict:
+def _queued(progress: Progress) -> None:
+    """Send a report to this pool worker's parent (a lost report is no failure)."""
+    with contextlib.suppress(Exception):
+        _PROGRESS_QUEUE.put(progress)
+
+
+def _deblur_views(source, index: int, views: tuple[str, ...], job: ClipJob, progress) -> dict:
     """Results of ``views`` of frame ``index``, deblurred together (motion computed once)."""
     from ..pipeline import deblur_stereo_frame
 
-    frames = deblur_stereo_frame(source, index, views=views, settings=job.settings).frames
+    if progress is None and _PROGRESS_QUEUE is not None:
+        progress = _queued
+    stereo = deblur_stereo_frame(
+        source, index, views=views, settings=job.settings, progress=progress
+    )
+    frames = stereo.frames
     return {view: frames[view] for view in views}
 
 
@@ -166,7 +205,7 @@ def _write_view(job: ClipJob, source, writer, result, view: str, index: int) -> 
             result.motion.sceneflow, result.image, blurred=result.blurred, color=source.info.color
         )
         write_ply(
-            point_cloud_path(job.output, view, index),
+            point_cloud_path(job.output, view, index, name=source.numbering.name(index)),
             cloud,
             comments=[f"frame {index} view {view}"],
         )
@@ -206,20 +245,24 @@ def process_task(
     threads: int | None = None,
     host_threads=None,
     capture: bool = True,
+    progress: ProgressCallback | None = None,
 ) -> tuple[FrameRecord, ...]:
     """Deblur and write ``views`` of frame ``index``; runs in a worker. Never raises for a
-    frame: a failure is a record with ``status='failed'`` per view."""
+    frame: a failure is a record with ``status='failed'`` per view. The stages' progress goes
+    to ``progress`` (in a pool worker without one: to the parent's queue)."""
     start = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     messages: list[str] = []
     caught: list = []
     stderr = captured_stderr(messages) if capture else contextlib.nullcontext()
     try:
-        with stderr, warnings.catch_warnings(record=True) as caught:
+        with stderr as shown, warnings.catch_warnings(record=True) as caught:
+            if shown is not None:  # the progress printer writes on the real standard error
+                progress = shown(progress)
             warnings.simplefilter("always")
             set_threads(threads or _dask_threads(host_threads))
             source, writer = _open(job)
-            results = _deblur_views(source, index, views, job)
+            results = _deblur_views(source, index, views, job, progress)
             t0 = time.perf_counter()
             for view, result in results.items():
                 _write_view(job, source, writer, result, view, index)

@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import InputError
 from ..geometry.camera import VIEWS, Exposure, StereoCamera
 from .camera_json import COLORS, CameraInfo
+from .numbering import SCENE_NUMBERING
 from .srgb import srgb_to_linear
 
 # The encoding of camera output (video files, KITTI's PNGs) when its calibration states none.
@@ -46,11 +47,25 @@ class FrameSource:
         1 (grey) or 3 (RGB).
     warnings : tuple of str
         Problems found that do not stop reading (e.g. dropped frames).
+    numbering : FrameNumbering
+        The source's frame numbers and names (default: ``000000``, ``000001``, ...).
     """
 
     kind = "source"
 
-    def __init__(self, *, root, name, paths, info, num_frames, shape, channels, warnings=()):
+    def __init__(
+        self,
+        *,
+        root,
+        name,
+        paths,
+        info,
+        num_frames,
+        shape,
+        channels,
+        warnings=(),
+        numbering=SCENE_NUMBERING,
+    ):
         self.root = Path(root)
         self.name = name
         self.paths = tuple(Path(p) for p in paths)
@@ -59,6 +74,7 @@ class FrameSource:
         self.shape = tuple(shape)
         self.channels = int(channels)
         self.warnings = tuple(warnings)
+        self.numbering = numbering
         if self.num_frames < 2:
             raise InputError(f"a clip needs at least two frames, found {self.num_frames} in {root}")
 

@@ -15,11 +15,14 @@ Stereo/flow 2012 (``kitti-2012``)::
 
 ``NNNNNN`` is the sequence and ``XX`` the frame (``10`` and ``11`` in the base
 benchmarks, ``00`` to ``20`` in the multi-view extensions); a sequence's frames
-must be numbered contiguously. Raw recordings (``kitti-raw``)::
+must be numbered contiguously. Results keep these names and frames are selected by
+their ``XX`` (:mod:`.numbering`). Raw recordings (``kitti-raw``)::
 
     DRIVE/image_02/data/NNNNNNNNNN.png  DRIVE/image_03/data/...   (or image_00 / image_01)
     DRIVE/image_02/timestamps.txt                                 one time per frame
     DRIVE/calib_cam_to_cam.txt  or  DRIVE/../calib_cam_to_cam.txt
+
+Their frames are numbered by the file, from 0 (``0000000042`` is frame 42).
 
 Calibration files hold lines ``key: numbers``. The stereo camera is that of
 :func:`~stereodeblur.io.calibration.stereo_from_projections`: ``K`` from the left
@@ -44,12 +47,15 @@ from ..errors import InputError
 from .calibration import stereo_from_projections
 from .frame_source import CAMERA_OUTPUT_COLOR, FrameSource, camera_info
 from .intrinsics import check_intrinsics
+from .numbering import FrameNumbering
 from .png import read_png, read_png_header
 from .scene import check_frame_size
 
 KITTI_FRAME_RATE = 10.0
 _BENCHMARK_NAME = re.compile(r"^(\d{6})_(\d{2})\.png$")
 _RAW_NAME = re.compile(r"^(\d{10})\.png$")
+# A raw drive's frames, 0000000000.png, 0000000001.png, ...
+RAW_NUMBERING = FrameNumbering(digits=10)
 # kind -> list of (left folder, right folder, calibration folder, left key, right key, size key)
 _BENCHMARK_LAYOUTS = {
     "kitti-2015": [
@@ -198,7 +204,9 @@ def read_timestamps(path) -> np.ndarray:
 class KittiSource(FrameSource):
     """A KITTI sequence or raw drive read frame by frame from its PNG files."""
 
-    def __init__(self, *, kind, root, name, files, info, shape, channels, paths, warnings=()):
+    def __init__(
+        self, *, kind, root, name, files, info, shape, channels, paths, warnings=(), numbering
+    ):
         self.kind = kind
         self._files = files
         super().__init__(
@@ -210,6 +218,7 @@ class KittiSource(FrameSource):
             shape=shape,
             channels=channels,
             warnings=warnings,
+            numbering=numbering,
         )
 
     def frame_path(self, view: str, index: int) -> Path:
@@ -223,8 +232,11 @@ class KittiSource(FrameSource):
         return read_png(self._files[view][index])
 
 
-def _benchmark_frames(folder: Path, sequence: str | None, root: Path) -> tuple[str, list[Path]]:
-    """The sequence to read and its frame files, sorted and checked to be contiguous."""
+def _benchmark_frames(
+    folder: Path, sequence: str | None, root: Path
+) -> tuple[str, list[Path], FrameNumbering]:
+    """The sequence to read, its frame files (sorted and checked to be contiguous) and their
+    numbering (``NNNNNN_XX``: the frame number ``XX`` within the sequence)."""
     found: dict[str, dict[int, Path]] = {}
     for path in folder.iterdir():
         match = _BENCHMARK_NAME.match(path.name)
@@ -259,7 +271,8 @@ def _benchmark_frames(folder: Path, sequence: str | None, root: Path) -> tuple[s
                 f"missing frame {folder / f'{sequence}_{expected:02d}.png'}: the frames of "
                 f"sequence {sequence} must be numbered contiguously"
             )
-    return sequence, [frames[n] for n in numbers]
+    numbering = FrameNumbering(first=numbers[0], digits=2, prefix=f"{sequence}_")
+    return sequence, [frames[n] for n in numbers], numbering
 
 
 def _raw_frames(folder: Path) -> list[Path]:
@@ -310,6 +323,7 @@ class _Layout:
     calib_path: Path
     keys: tuple[str, str, str | None]  # left and right projection, rectified size
     data_dirs: tuple[Path, Path]
+    numbering: FrameNumbering
     frame_rate: float = KITTI_FRAME_RATE
     warnings: tuple[str, ...] = ()
 
@@ -328,13 +342,14 @@ def _benchmark_layout(root: Path, kind: str, sequence) -> _Layout:
         for lay in _BENCHMARK_LAYOUTS[kind]
         if (root / lay[0]).is_dir() and (root / lay[1]).is_dir()
     )
-    sequence, left = _benchmark_frames(root / left_dir, sequence, root)
+    sequence, left, numbering = _benchmark_frames(root / left_dir, sequence, root)
     return _Layout(
         name=f"{root.name}/{sequence}",
         files={"left": left, "right": _right_files(left, root / right_dir)},
         calib_path=root / calib_dir / f"{sequence}.txt",
         keys=tuple(keys),
         data_dirs=(root / left_dir, root / right_dir),
+        numbering=numbering,
     )
 
 
@@ -368,6 +383,7 @@ def _raw_layout(root: Path, frame_rate) -> _Layout:
         calib_path=calib_path,
         keys=tuple(keys),
         data_dirs=(root / left_dir / "data", root / right_dir / "data"),
+        numbering=RAW_NUMBERING,
         frame_rate=source_frame_rate,
         warnings=tuple(warnings),
     )
@@ -424,4 +440,5 @@ def open_kitti(
         channels=header.channels,
         paths=[*layout.data_dirs, calib_path],
         warnings=layout.warnings,
+        numbering=layout.numbering,
     )

@@ -7,7 +7,8 @@ frames or ground truth takes a ``StereoScene`` and never probes for attributes.
 
 Conventions
 -----------
-- Views are ``'left'`` and ``'right'``; frames are numbered ``0 .. num_frames - 1``.
+- Views are ``'left'`` and ``'right'``; frames are indexed ``0 .. num_frames - 1``; the
+  source's own numbers and file names are ``numbering``'s (:mod:`.numbering`).
 - Frames are float32 in [0, 1], ``(H, W)`` grey or ``(H, W, 3)`` RGB, linear in
   irradiance when read with ``linear=True`` (sRGB decoded when ``info.color == 'srgb'``).
 - Ground truth kinds are ``'sharp'``, ``'disparity'``, ``'flow'`` and ``'mixed'``
@@ -25,6 +26,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from .camera_json import CameraInfo
+    from .numbering import FrameNumbering
 
 
 @runtime_checkable
@@ -51,6 +53,8 @@ class StereoScene(Protocol):
         Frame size ``(H, W)``.
     channels : int
         1 (grey) or 3 (RGB).
+    numbering : FrameNumbering
+        The source's numbers and names of its frames (results keep them).
     """
 
     root: Path
@@ -62,6 +66,7 @@ class StereoScene(Protocol):
     num_frames: int
     shape: tuple[int, int]
     channels: int
+    numbering: FrameNumbering
 
     def read_frame(self, view: str, index: int, *, linear: bool = True) -> np.ndarray:
         """Frame ``index`` of ``view`` as float32 in [0, 1], linear when ``linear``."""

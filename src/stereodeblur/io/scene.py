@@ -39,6 +39,7 @@ from .camera_json import (
 )
 from .formats import read_flo, read_pfm, write_flo, write_pfm
 from .intrinsics import check_intrinsics
+from .numbering import SCENE_NUMBERING, FrameNumbering
 from .png import (
     PngInfo,
     _check_image,
@@ -53,6 +54,9 @@ from .srgb import linear_to_srgb, srgb_to_linear
 GT_KINDS = ("sharp", "disparity", "flow", "mixed")
 _EXTENSIONS = {"frame": "png", "sharp": "png", "disparity": "pfm", "flow": "flo", "mixed": "png"}
 _FRAME_NAME = re.compile(r"^(\d{6})\.png$")
+# Frame files a writer may have written: a scene's, or another source's kept names
+# (:mod:`.numbering`, e.g. KITTI's 000005_10.png, 0000000042.png).
+_WRITTEN_NAME = re.compile(r"^\d[\d_]*\.png$")
 # Middlebury marks unknown flow with values above 1e9.
 FLOW_UNKNOWN = 1e10
 # Smallest frame side of a clip: the dense optical flow (OpenCV DIS) needs 12 pixels,
@@ -82,11 +86,19 @@ def _check_index(index, num_frames: int | None = None) -> int:
     return index
 
 
-def scene_path(root: str | os.PathLike, kind: str, view: str, index: int) -> Path:
-    """Path of a frame (``kind='frame'``) or ground-truth file in the scene at ``root``."""
+def scene_path(
+    root: str | os.PathLike,
+    kind: str,
+    view: str,
+    index: int,
+    *,
+    numbering: FrameNumbering = SCENE_NUMBERING,
+) -> Path:
+    """Path of a frame (``kind='frame'``) or ground-truth file in the scene at ``root``;
+    named as ``numbering`` names frame ``index`` (a scene's ``NNNNNN`` by default)."""
     if kind not in _EXTENSIONS:
         raise InputError(f"kind must be one of {', '.join(_EXTENSIONS)}, got {kind!r}")
-    name = f"{_check_index(index):06d}.{_EXTENSIONS[kind]}"
+    name = f"{numbering.name(_check_index(index))}.{_EXTENSIONS[kind]}"
     folder = Path(root) / _check_view(view) if kind == "frame" else Path(root) / "gt" / kind / view
     return folder / name
 
@@ -144,6 +156,8 @@ class Scene:
         1 (grey) or 3 (RGB).
     bit_depth : int
         Bit depth of the frame PNGs.
+    numbering : FrameNumbering
+        ``000000``, ``000001``, ...
     """
 
     def __init__(self, root: str | os.PathLike):
@@ -154,6 +168,7 @@ class Scene:
         self.name = root.name
         self.paths = (root,)
         self.warnings: tuple[str, ...] = ()
+        self.numbering = SCENE_NUMBERING
         self.info = read_camera(root / "camera.json")
         numbers = {}
         for view in VIEWS:
@@ -312,7 +327,7 @@ def _existing_frame_shape(root: Path) -> tuple[int, int, int] | None:
         with os.scandir(folder) as scan:
             names = sorted(entry.name for entry in scan if entry.is_file())
         for name in names:
-            if _FRAME_NAME.match(name):
+            if _WRITTEN_NAME.match(name):
                 header = read_png_header(folder / name)
                 return header.height, header.width, header.channels
     return None
@@ -325,7 +340,8 @@ class SceneWriter:
     ``camera.json``), so an interrupted run can resume; a folder holding anything
     else, or a scene with a different ``camera.json``, needs ``overwrite=True``.
     ``protect`` lists input scene folders that must never be written into.
-    Existing files are never deleted.
+    Existing files are never deleted. Frames and ground truth are named as ``numbering``
+    names them (a scene's ``NNNNNN`` by default; a source's own names keep them in results).
     """
 
     def __init__(
@@ -335,6 +351,7 @@ class SceneWriter:
         *,
         overwrite: bool = False,
         protect=(),
+        numbering: FrameNumbering = SCENE_NUMBERING,
     ):
         if not isinstance(info, CameraInfo):
             raise InputError(f"info must be a CameraInfo, got {type(info).__name__}")
@@ -369,6 +386,7 @@ class SceneWriter:
                 )
         self.root = root
         self.info = info
+        self.numbering = numbering
         self._shape = None if overwrite else _existing_frame_shape(root)
         for view in VIEWS:
             (root / view).mkdir(parents=True, exist_ok=True)
@@ -380,7 +398,7 @@ class SceneWriter:
 
     def path_for(self, kind: str, view: str, index: int) -> Path:
         """Path of ``kind`` ('frame', 'sharp', 'disparity', 'flow', 'mixed') for a frame."""
-        return scene_path(self.root, kind, view, index)
+        return scene_path(self.root, kind, view, index, numbering=self.numbering)
 
     def write_frame(
         self, view: str, index: int, image: np.ndarray, *, bit_depth: int = 16, linear: bool = True

@@ -379,7 +379,8 @@ def deblur_frame(
     (from :func:`~.motion.frame_motion` with the same settings) skips the motion
     estimation; with either, ``alpha='held-out'`` is ``'auto'`` and the view has its single
     observation (the other view and the neighbours' motion are not known).
-    Reports progress as ``"frame {index} {view}: ..."``.
+    Reports progress as ``"frame {number} {view}: ..."`` (the source's number of frame
+    ``index``, :mod:`stereodeblur.io.numbering`).
     """
     settings = settings or DeblurSettings()
     (view,) = check_views((view,))
@@ -397,7 +398,7 @@ def deblur_frame(
             scene, index, views=(view,), settings=settings, progress=progress
         )
         return stereo.frames[view]
-    progress = prefixed(progress, f"frame {index} {view}: ")
+    progress = prefixed(progress, f"frame {scene.numbering.number(index)} {view}: ")
     start = time.perf_counter()
     check_gt(scene, index, settings, (view,), motion=motion is None)
     window = read_window(scene, index, (view,), settings, motion=motion is None)
@@ -425,7 +426,8 @@ def deblur_stereo_frame(
     Each view's image equals :func:`deblur_frame`'s. ``sceneflow``: the left view's scene
     flow towards the frame's neighbour (e.g. saved by ``stereodeblur sceneflow``), used
     instead of an estimate (``motion_source='sceneflow'``). Reports progress as
-    ``"frame {index}: motion ..."`` and ``"frame {index} {view}: ..."``.
+    ``"frame {number}: motion ..."`` and ``"frame {number} {view}: ..."`` (the source's number
+    of frame ``index``, :mod:`stereodeblur.io.numbering`).
     """
     settings = settings or DeblurSettings()
     views = check_views(views)
@@ -433,19 +435,20 @@ def deblur_stereo_frame(
     kinds = observation_kinds(settings)
     needed = views_read(settings, views)
     timings = {}
+    label = f"frame {scene.numbering.number(index)}"
     start = time.perf_counter()
     check_gt(scene, index, settings, needed)
     window = read_window(scene, index, needed, settings, estimate=sceneflow is None)
     timings["read"] = time.perf_counter() - start
     start = time.perf_counter()
-    report(progress, f"frame {index}: motion ({settings.motion_source})")
+    report(progress, f"{label}: motion ({settings.motion_source})")
     motion = stereo_motion(
         scene,
         window,
         needed,
         settings,
         sceneflow=sceneflow,
-        progress=prefixed(progress, f"frame {index}: "),
+        progress=prefixed(progress, f"{label}: "),
     )
     timings["motion"] = time.perf_counter() - start
     share = {"motion": sum(timings.values()) / len(views)}
@@ -453,7 +456,7 @@ def deblur_stereo_frame(
     if cross_view or kinds:  # every operator first: the views use each other's
         for view in needed:
             start = time.perf_counter()
-            report(progress, f"frame {index} {view}: blur operator ({settings.kernels})")
+            report(progress, f"{label} {view}: blur operator ({settings.kernels})")
             operators[view] = build_view_operator(window, motion.views[view], settings)
             seconds[view] = {"operator": time.perf_counter() - start}
     if cross_view or "other-view" in kinds:  # a view's data weights weigh it as the other's
@@ -482,7 +485,7 @@ def deblur_stereo_frame(
             motion.views[view],
             settings,
             timings=share | seconds.get(view, {}),
-            progress=prefixed(progress, f"frame {index} {view}: "),
+            progress=prefixed(progress, f"{label} {view}: "),
             operator=operators.get(view),
             other=other,
             terms=terms.get(view),

@@ -26,7 +26,8 @@ raises :class:`~stereodeblur.errors.InputError` naming the file otherwise.
 
 Dense outputs
 -------------
-:func:`write_sceneflow_outputs` writes, for frame ``i`` (six digits ``NNNNNN``)::
+:func:`write_sceneflow_outputs` writes, for frame ``i`` (six digits ``NNNNNN``, or the
+source's own frame name: KITTI's ``000005_10``)::
 
     OUT/disparity/left/NNNNNN.pfm    disparity of every pixel from its segment's plane
     OUT/flow/left/NNNNNN.flo         2D projection of the scene flow, t -> t + 1
@@ -142,7 +143,9 @@ def load_sceneflow(path: str | os.PathLike) -> SceneFlow:
         raise InputError(f"invalid scene flow file {path}: {err}") from None
 
 
-def write_sceneflow_outputs(out_dir: str | os.PathLike, sceneflow, frame_index: int) -> dict:
+def write_sceneflow_outputs(
+    out_dir: str | os.PathLike, sceneflow, frame_index: int, *, name: str | None = None
+) -> dict:
     """Write dense disparity, flow, occlusion and the scene flow file for one frame.
 
     Parameters
@@ -151,7 +154,9 @@ def write_sceneflow_outputs(out_dir: str | os.PathLike, sceneflow, frame_index: 
         Output root (the layout of a scene's gt/ folder, see the module docstring).
     sceneflow : SceneFlow or SceneFlowEstimate
     frame_index : int
-        Frame number ``i`` (frame t); files are named ``{i:06d}``.
+        Frame number ``i`` (frame t); files are named ``{i:06d}`` unless ``name`` is given.
+    name : str, optional
+        The files' name without extension (a source's own frame name, e.g. ``'000005_10'``).
 
     Returns
     -------
@@ -163,7 +168,10 @@ def write_sceneflow_outputs(out_dir: str | os.PathLike, sceneflow, frame_index: 
     sf = _as_sceneflow(sceneflow)
     if int(frame_index) != frame_index or frame_index < 0:
         raise InputError(f"frame_index must be a non-negative integer, got {frame_index!r}")
-    name = f"{int(frame_index):06d}"
+    if name is None:
+        name = f"{int(frame_index):06d}"
+    elif not name or "/" in name or name.startswith("."):
+        raise InputError(f"name must be a file name without '/', got {name!r}")
     root = Path(out_dir)
     disparity = np.nan_to_num(sf.disparity(), nan=0.0, posinf=0.0, neginf=0.0)
     flow = np.nan_to_num(sf.flow(), nan=0.0, posinf=0.0, neginf=0.0)
