@@ -57,8 +57,11 @@ def add_source_options(parser: argparse.ArgumentParser, *, require_exposure: boo
     g.add_argument(
         "--calib",
         metavar="FILE",
-        help="stereo calibration of a video pair: OpenCV YAML or camera.json (no default: a "
-        "video pair needs it; folders hold their own calibration and refuse it)",
+        help="stereo calibration of a video pair: OpenCV YAML (P1, P2 or Q) or camera.json; "
+        "for an unrectified rig, whose frames are rectified on reading: OpenCV YAML with M1, "
+        "D1, M2, D2, R, T, a Kalibr camchain.yaml, or a folder with ROS left.yaml and "
+        "right.yaml (no default: a video pair needs it; folders hold their own calibration "
+        "and refuse it)",
     )
     g.add_argument(
         "--exposure",

@@ -409,8 +409,8 @@ def _read_text(path: Path) -> str:
     return text
 
 
-def _opencv_json(data: dict, path: Path) -> StereoCalibration:
-    """An OpenCV FileStorage JSON file, converted to the YAML entries' form."""
+def opencv_json_text(data: dict) -> str:
+    """An OpenCV FileStorage JSON object as the YAML text FileStorage would write."""
     lines = []
     for key, value in data.items():
         if isinstance(value, dict) and value.get("type_id") == "opencv-matrix":
@@ -419,7 +419,7 @@ def _opencv_json(data: dict, path: Path) -> StereoCalibration:
             lines.extend(f"  {k}: {json.dumps(v)}" for k, v in fields.items())
         elif isinstance(value, list | int | float) and not isinstance(value, bool):
             lines.append(f"{key}: {json.dumps(value)}")
-    return read_opencv_calibration(path, "\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
 
 
 def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
@@ -445,7 +445,7 @@ def read_stereo_calibration(path: str | os.PathLike) -> StereoCalibration:
                 color=info.color if "color" in data else None,
                 path=path,
             )
-        return _opencv_json(data, path)
+        return read_opencv_calibration(path, opencv_json_text(data))
     return read_opencv_calibration(path, text)
 
 

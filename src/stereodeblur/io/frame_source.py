@@ -3,8 +3,10 @@
 :class:`FrameSource` holds what every source knows after opening (camera, size,
 frame count, input paths) and implements the read-only part of the
 :class:`~stereodeblur.io.protocol.StereoScene` protocol; subclasses implement
-:meth:`FrameSource._read_stored`. :func:`camera_info` merges the timing and colour
-given by the caller with the source's own.
+:meth:`FrameSource._read_stored`. A source of an unrectified rig carries a
+:class:`~stereodeblur.io.rectify.Rectification`: its frames are rectified on reading, in
+linear light, and everything after sees the rectified pair. :func:`camera_info` merges
+the timing and colour given by the caller with the source's own.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from ..errors import InputError
 from ..geometry.camera import VIEWS, Exposure, StereoCamera
 from .camera_json import COLORS, CameraInfo
 from .numbering import SCENE_NUMBERING
-from .srgb import srgb_to_linear
+from .srgb import linear_to_srgb, srgb_to_linear
 
 # The encoding of camera output (video files, KITTI's PNGs) when its calibration states none.
 CAMERA_OUTPUT_COLOR = "srgb"
@@ -49,6 +51,9 @@ class FrameSource:
         Problems found that do not stop reading (e.g. dropped frames).
     numbering : FrameNumbering
         The source's frame numbers and names (default: ``000000``, ``000001``, ...).
+    rectification : Rectification or None
+        For an unrectified rig: how its stored frames are rectified on reading; ``info``
+        then holds the rectified camera.
     """
 
     kind = "source"
@@ -65,6 +70,7 @@ class FrameSource:
         channels,
         warnings=(),
         numbering=SCENE_NUMBERING,
+        rectification=None,
     ):
         self.root = Path(root)
         self.name = name
@@ -75,6 +81,7 @@ class FrameSource:
         self.channels = int(channels)
         self.warnings = tuple(warnings)
         self.numbering = numbering
+        self.rectification = rectification
         if self.num_frames < 2:
             raise InputError(f"a clip needs at least two frames, found {self.num_frames} in {root}")
 
@@ -87,7 +94,10 @@ class FrameSource:
     def describe(self) -> str:
         """One line: kind, name, frames and size."""
         h, w = self.shape
-        return f"{self.kind} {self.name}: {self.num_frames} frames of {w}x{h}"
+        text = f"{self.kind} {self.name}: {self.num_frames} frames of {w}x{h}"
+        if self.rectification is not None:
+            text += f", rectified on reading ({self.rectification.kind} calibration)"
+        return text
 
     def _check(self, view: str, index) -> int:
         if view not in VIEWS:
@@ -99,7 +109,11 @@ class FrameSource:
         return int(index)
 
     def read_frame(self, view: str, index: int, *, linear: bool = True) -> np.ndarray:
-        """Frame ``index`` of ``view`` as float32 in [0, 1], linear when ``linear``."""
+        """Frame ``index`` of ``view`` as float32 in [0, 1], linear when ``linear``.
+
+        A raw rig's frame is rectified in linear light, then encoded again when the
+        stored encoding is asked for (``linear=False``).
+        """
         image = self._read_stored(view, self._check(view, index))
         expected = (*self.shape, 3) if self.channels == 3 else self.shape
         if image.shape != expected:
@@ -107,9 +121,13 @@ class FrameSource:
                 f"frame {index} of the {view} view of {self.name} has shape {image.shape}, "
                 f"expected {expected}"
             )
-        if linear and self.info.color == "srgb":
-            image = srgb_to_linear(image)
-        return image
+        encoded = self.info.color == "srgb"
+        if self.rectification is None:
+            return srgb_to_linear(image) if linear and encoded else image
+        from .rectify import rectify_view
+
+        image = rectify_view(self.rectification, view, srgb_to_linear(image) if encoded else image)
+        return linear_to_srgb(image) if encoded and not linear else image
 
     def _read_stored(self, view: str, index: int) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError

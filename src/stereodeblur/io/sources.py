@@ -11,7 +11,8 @@ Kinds of input
 - KITTI scene flow 2015 (``image_2/ image_3/ calib_cam_to_cam/``), stereo/flow 2012
   (``image_0/ image_1/ calib/``, or ``colored_0/ colored_1/``) and raw recordings
   (``image_02/data image_03/data``, ``calib_cam_to_cam.txt``): see :mod:`.kitti`;
-- two video files, left then right, with a calibration file: see :mod:`.video`.
+- two video files, left then right, with a calibration file: see :mod:`.video`; the
+  videos of an unrectified rig are rectified on reading (:mod:`.rig`, :mod:`.rectify`).
 
 Frame rate, exposure and colour come from the source when it has them;
 ``frame_rate``, ``exposure`` and ``color`` given here override them. Video files and
@@ -148,7 +149,8 @@ def open_source(
     paths : path or sequence of paths
         One folder, or two video files (left, right).
     calib : path, optional
-        Stereo calibration for videos: OpenCV YAML (``P1``/``P2``/``Q``) or ``camera.json``.
+        Stereo calibration for videos: OpenCV YAML (``P1``/``P2``/``Q``) or ``camera.json``,
+        or an unrectified rig's (:func:`~stereodeblur.io.rig.read_calibration`).
     exposure, frame_rate : float, optional
         Seconds and frames per second; override the source's.
     color : {'linear', 'srgb'}, optional

@@ -1,11 +1,13 @@
-"""A pair of rectified video files (left, right) as a stereo clip, read frame by frame.
+"""A pair of video files (left, right) as a stereo clip, read frame by frame.
 
 Frames are decoded on demand with :class:`cv2.VideoCapture` (FFmpeg): reading the
 next frame is sequential decoding; any other frame is a seek. At most a few
 recent frames per view stay in memory. Frame ``i`` of both videos is taken to be
 exposed at the same instant. The frame rate comes from the container (or
 ``frame_rate``); the camera from a calibration file
-(:mod:`stereodeblur.io.calibration`). The values are camera output, sRGB-encoded
+(:mod:`stereodeblur.io.calibration`), or, for the videos of an unrectified rig, from the
+rectification of its calibration (:mod:`stereodeblur.io.rig`, :mod:`stereodeblur.io.rectify`):
+frames are then rectified on reading. The values are camera output, sRGB-encoded
 (:data:`~stereodeblur.io.frame_source.CAMERA_OUTPUT_COLOR`) unless the calibration (a
 ``camera.json`` with ``"color"``) or ``color`` says otherwise: frames are linearised on reading.
 
@@ -23,9 +25,11 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from .calibration import check_image_size, read_stereo_calibration
+from .calibration import check_image_size
 from .files import quiet_stderr
 from .frame_source import CAMERA_OUTPUT_COLOR, FrameSource, camera_info
+from .rectify import rectify_rig
+from .rig import StereoRig, read_calibration
 from .scene import check_frame_size
 
 CACHE_FRAMES = 4  # decoded frames kept per view
@@ -113,7 +117,18 @@ class VideoSource(FrameSource):
 
     kind = "video"
 
-    def __init__(self, left, right, *, info, num_frames, shape, calibration, warnings=()):
+    def __init__(
+        self,
+        left,
+        right,
+        *,
+        info,
+        num_frames,
+        shape,
+        calibration,
+        warnings=(),
+        rectification=None,
+    ):
         self.files = {"left": Path(left), "right": Path(right)}
         self.calibration = calibration
         self._captures: dict[str, cv2.VideoCapture] = {}
@@ -131,6 +146,7 @@ class VideoSource(FrameSource):
             shape=shape,
             channels=3,
             warnings=warnings,
+            rectification=rectification,
         )
 
     def frame_label(self, view: str, index: int) -> str:
@@ -217,7 +233,11 @@ def open_video_pair(
     color=None,
     require_exposure: bool = True,
 ) -> VideoSource:
-    """Open two rectified videos as a stereo clip, with the stereo calibration ``calib``.
+    """Open two videos as a stereo clip, with the stereo calibration ``calib``.
+
+    ``calib`` is a rectified pair's calibration, or an unrectified rig's (see
+    :func:`~stereodeblur.io.rig.read_calibration`): its frames are then rectified on
+    reading and the source's camera is the rectified one.
 
     The videos must have the same size and frame rate and at least two frames each.
     When their frame counts differ the extra frames of the longer one are ignored and
@@ -229,12 +249,13 @@ def open_video_pair(
     if calib is None:
         raise InputError(
             "a video pair needs calib: an OpenCV stereo calibration file (YAML with P1, P2 "
-            "or Q) or a camera.json",
+            "or Q, or M1, D1, M2, D2, R, T), a camera.json, a Kalibr camchain.yaml or a "
+            "folder with ROS left.yaml and right.yaml",
             parameter="calib",
         )
     if left.resolve() == right.resolve():
         raise InputError(f"the left and right videos are the same file: {left}")
-    calibration = read_stereo_calibration(calib)
+    calibration = read_calibration(calib)
     probes = {"left": _probe(left), "right": _probe(right)}
     if probes["left"]["size"] != probes["right"]["size"]:
         (lw, lh), (rw, rh) = probes["left"]["size"], probes["right"]["size"]
@@ -245,6 +266,10 @@ def open_video_pair(
             f"{left} has {rates[0]:.6g} frames per second but {right} has {rates[1]:.6g}"
         )
     check_frame_size(*probes["left"]["size"], left)
+    rectification = None
+    if isinstance(calibration, StereoRig):
+        rectification = rectify_rig(calibration, probes["left"]["size"], f"video {left}")
+        calibration = rectification.calibration
     check_image_size(calibration, probes["left"]["size"], f"video {left}")
     warnings = []
     counts = probes["left"]["count"], probes["right"]["count"]
@@ -273,6 +298,7 @@ def open_video_pair(
         shape=(height, width),
         calibration=calibration,
         warnings=warnings,
+        rectification=rectification,
     )
 
 
