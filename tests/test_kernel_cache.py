@@ -1,6 +1,7 @@
 """A first run says that it compiles the kernels: numba's cache for them is empty."""
 
 import os
+import shutil
 import subprocess
 import sys
 
@@ -56,3 +57,18 @@ def test_sceneflow_says_it_compiles(tiny_scene, tmp_path, monkeypatch):
     assert result.code == 0, result.stderr
     assert result.stderr.splitlines()[0] == f"stereodeblur: {COMPILE_NOTICE}"
     assert asked == [_kernel_cache.SCENEFLOW_MODULES]
+
+
+def test_bad_input_is_one_line_on_a_first_run(tiny_scene, tmp_path, monkeypatch):
+    """The notice waits for the inputs to be checked: a bad frame on a fresh install still
+    gives one line, as on any other run."""
+    from stereodeblur import _kernel_cache
+
+    monkeypatch.setattr(_kernel_cache, "kernels_cached", lambda modules: False)
+    scene = shutil.copytree(tiny_scene, tmp_path / "bad-scene")
+    (scene / "left" / "000001.png").write_bytes(b"not a png")
+    for command in ("deblur", "sceneflow"):
+        result = run_cli(command, scene, "-o", tmp_path / f"out-{command}")
+        assert result.code == 2, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+        assert COMPILE_NOTICE not in result.stderr

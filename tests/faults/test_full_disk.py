@@ -44,9 +44,9 @@ def test_full_disk_stops_the_run_and_it_resumes(
     deblurred = []
     real_deblur = worker._deblur_views
 
-    def counting(source, index, views, job):
+    def counting(source, index, views, job, progress):
         deblurred.append(index)
-        return real_deblur(source, index, views, job)
+        return real_deblur(source, index, views, job, progress)
 
     monkeypatch.setattr(worker, "_deblur_views", counting)
     with monkeypatch.context() as patch:

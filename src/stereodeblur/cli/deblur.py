@@ -8,7 +8,12 @@ import sys
 from ..errors import InputError, StorageError
 from ..settings import DASK_CONNECT_TIMEOUT
 from .base import EXIT_FAILED, EXIT_USAGE, add_quiet, integer
-from .printer import print_compile_notice, print_warnings, progress_printer
+from .printer import (
+    print_compile_notice,
+    print_warnings,
+    progress_printer,
+    with_compile_notice,
+)
 from .settings_options import add_settings_options, settings_from_arguments
 from .sources import (
     add_frames_option,
@@ -94,7 +99,6 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.output, input_paths(spec), subfolders=written, command="deblur")
     frames = None if args.frames is None else select_frames(args.frames, source)
     views = views_of(args)
-    print_compile_notice(args.quiet, _kernel_modules(settings))
     if args.sceneflow:
         return _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views)
     return _deblur_clip(args, settings, spec, frames, views, source)
@@ -124,7 +128,10 @@ def _deblur_clip(args, settings, spec, frames, views, source) -> int:
             point_cloud=args.point_cloud,
             workers=args.workers,
             scheduler=args.scheduler,
-            progress=progress_printer(args.quiet) or False,
+            progress=with_compile_notice(
+                progress_printer(args.quiet), args.quiet, _kernel_modules(settings)
+            )
+            or False,
             command=["stereodeblur", *args.argv],
         )
     except StorageError as err:
@@ -175,6 +182,7 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
         )
     check_output(args.output, [args.sceneflow], command="deblur")
     progress = progress_printer(args.quiet)
+    print_compile_notice(args.quiet, _kernel_modules(settings))
     writer = SceneWriter(
         args.output,
         source.info,

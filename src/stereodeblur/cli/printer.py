@@ -67,6 +67,23 @@ def print_compile_notice(quiet: bool, modules) -> None:
         print(f"stereodeblur: {COMPILE_NOTICE}", file=sys.stderr, flush=True)
 
 
+def with_compile_notice(progress, quiet: bool, modules):
+    """``progress`` that first prints the compile notice (:func:`print_compile_notice`) at
+    its first report, that is once the run has checked its inputs and starts computing;
+    None stays None (nothing is reported, nothing is computed first)."""
+    if progress is None:
+        return None
+    pending = [True]
+
+    def report(*args, **kwargs):
+        if pending:
+            pending.clear()
+            print_compile_notice(quiet, modules)
+        return progress(*args, **kwargs)
+
+    return report
+
+
 def print_warnings(messages: Iterable[str]) -> None:
     """Each message once as ``stereodeblur: warning: ...`` on stderr."""
     for message in dict.fromkeys(messages):

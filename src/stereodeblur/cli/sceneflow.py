@@ -72,10 +72,11 @@ def run(args: argparse.Namespace) -> int:
     if args.debug_dir is not None:
         check_output(args.debug_dir, protect, command="sceneflow")
     progress = progress_printer(args.quiet)
-    print_compile_notice(args.quiet, SCENEFLOW_MODULES)
-    for index in frames:
+    for count, index in enumerate(frames):
         neighbour = neighbour_of(index, source.num_frames)
         images = [source.read_frame(v, i) for i in (index, neighbour) for v in ("left", "right")]
+        if count == 0:  # the first frames read: the estimate is about to compile
+            print_compile_notice(args.quiet, SCENEFLOW_MODULES)
         name = source.numbering.name(index)
         debug = None if args.debug_dir is None else Path(args.debug_dir) / name
         with warnings.catch_warnings():  # printed below as one line each
