@@ -235,6 +235,10 @@ def _first_line(exc: BaseException) -> str:
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
+def _no_answer(timeout: float) -> InputError:
+    return InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)")
+
+
 def _not_a_scheduler(exc: Exception) -> InputError:
     # Garbage read as Dask messages fails in many ways (a 3 EiB allocation for an HTTP
     # answer): the kind of failure is enough.
@@ -252,7 +256,7 @@ async def _identity(address: str, timeout: float) -> dict:
     try:  # distributed retries a refused connection until its own, shorter, timeout
         comm = await asyncio.wait_for(connect(address, timeout=round(0.8 * timeout, 1)), timeout)
     except TimeoutError:  # connected, but the handshake got no answer
-        raise InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)") from None
+        raise _no_answer(timeout) from None
     except OSError as exc:
         raise InputError(_first_line(exc)) from None
     except Exception as exc:  # the handshake got garbage
@@ -263,7 +267,7 @@ async def _identity(address: str, timeout: float) -> dict:
         try:
             answer = await asyncio.wait_for(comm.read(), remaining)
         except TimeoutError:
-            raise InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)") from None
+            raise _no_answer(timeout) from None
     except InputError:
         raise
     except Exception as exc:  # garbage: unpickling or allocation errors of every kind
@@ -306,7 +310,7 @@ def check_scheduler(address: str, timeout: float | None = None) -> None:
     thread.join(timeout + 2.0)
     error = outcome.get("error")
     if thread.is_alive():
-        error = InputError(f"no answer within {timeout:g} s (is it a Dask scheduler?)")
+        error = _no_answer(timeout)
     elif error is None:
         answer = outcome.get("answer")
         kind = answer.get("type") if isinstance(answer, dict) else type(answer).__name__

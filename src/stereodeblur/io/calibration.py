@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import InputError
 from ..geometry.camera import StereoCamera
 from .camera_json import json_object, read_camera
-from .intrinsics import check_intrinsics
+from .intrinsics import camera_matrix, check_intrinsics
 
 HORIZONTAL_TOLERANCE = 0.02  # |baseline y, z| / baseline x above this: not a horizontal pair
 SAME_TOLERANCE = 1e-6  # relative difference allowed between intrinsics that must agree
@@ -108,13 +108,7 @@ def _from_projections(P_left, P_right, where: str) -> StereoCamera:
         raise InputError(f"{where}: the left projection matrix has P[2][2] = 0")
     scale = K[2, 2]
     K, K_right, P_left, P_right = (m / scale for m in (K, K_right, P_left, P_right))
-    if not np.allclose(K[2], [0, 0, 1], atol=1e-9) or K[1, 0] != 0:
-        raise InputError(
-            f"{where}: the left projection matrix is not K [I | t] with "
-            f"K = [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got {np.round(P_left, 6).tolist()}"
-        )
-    if K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise InputError(f"{where}: focal lengths must be positive, got {K[0, 0]}, {K[1, 1]}")
+    camera_matrix(K, f"{where}: the K of the left projection matrix K [I | t]")
     for (r, c), name in {(0, 0): "fx", (1, 1): "fy", (0, 2): "cx", (1, 2): "cy"}.items():
         if _relative_difference(K[r, c], K_right[r, c]) > SAME_TOLERANCE:
             raise InputError(

@@ -15,6 +15,8 @@ pixels:
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import InputError
 
 MIN_FOCAL = 1 / 20  # times the image size: a field of view of at most ~169 degrees
@@ -30,6 +32,29 @@ def intrinsics_ranges(width: int, height: int) -> dict[str, tuple[float, float]]
         "cx": (-PRINCIPAL_MARGIN * width, (1 + PRINCIPAL_MARGIN) * width),
         "cy": (-PRINCIPAL_MARGIN * height, (1 + PRINCIPAL_MARGIN) * height),
     }
+
+
+def camera_matrix(K, where) -> np.ndarray:
+    """``K`` as a float64 ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` with positive focal lengths.
+
+    Raises
+    ------
+    InputError
+        Naming ``where`` and what is wrong (shape, a non-finite value, the form, a focal length).
+    """
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3):
+        raise InputError(f"{where} must be a 3x3 camera matrix, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise InputError(f"{where} has a value that is not a finite number")
+    if not np.allclose(K[2], [0, 0, 1], atol=1e-9) or K[1, 0] != 0:
+        raise InputError(
+            f"{where} is not a camera matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]], "
+            f"got {np.round(K, 6).tolist()}"
+        )
+    if K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise InputError(f"{where}: focal lengths must be positive, got {K[0, 0]}, {K[1, 1]}")
+    return K
 
 
 def check_intrinsics(K, size: tuple[int, int], where) -> None:

@@ -56,6 +56,7 @@ from .calibration import (
     read_stereo_calibration,
 )
 from .camera_json import json_object
+from .intrinsics import camera_matrix
 
 MODELS = ("pinhole", "fisheye")
 PINHOLE_COEFFICIENTS = (4, 5, 8, 12, 14)  # the lengths cv2.undistort accepts
@@ -136,22 +137,6 @@ class StereoRig:
 # --------------------------------------------------------------------------- values
 
 
-def _intrinsics(K, where: str) -> np.ndarray:
-    K = np.asarray(K, dtype=np.float64)
-    if K.shape != (3, 3):
-        raise InputError(f"{where} must be a 3x3 camera matrix, got shape {K.shape}")
-    if not np.all(np.isfinite(K)):
-        raise InputError(f"{where} has a value that is not a finite number")
-    if not np.allclose(K[2], [0, 0, 1], atol=1e-9) or K[1, 0] != 0:
-        raise InputError(
-            f"{where} is not a camera matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]], "
-            f"got {np.round(K, 6).tolist()}"
-        )
-    if K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise InputError(f"{where}: focal lengths must be positive, got {K[0, 0]}, {K[1, 1]}")
-    return K
-
-
 def _distortion(values, model: str, where: str) -> np.ndarray:
     values = np.asarray(values, dtype=np.float64)
     if values.ndim == 2 and 1 not in values.shape:
@@ -223,7 +208,7 @@ def _opencv_rig(found: dict[str, tuple[dict, Path]], path: Path) -> StereoRig:
         K, k_where = matrix(f"M{side}")
         D, d_where = matrix(f"D{side}")
         cameras.append(
-            RawCamera(_intrinsics(K, k_where), _distortion(D, "pinhole", d_where), k_where)
+            RawCamera(camera_matrix(K, k_where), _distortion(D, "pinhole", d_where), k_where)
         )
     R, r_where = matrix("R")
     T, t_where = matrix("T")
@@ -321,16 +306,21 @@ def _ros_matrix(data: dict, key: str, shape, where: str) -> np.ndarray:
     return values.reshape(shape)
 
 
+def _distortion_model(data: dict, models: dict, where: str) -> tuple[str, str]:
+    """The file's ``distortion_model`` and the OpenCV model (``models``) it stands for."""
+    name = _get(data, "distortion_model", where)
+    if name not in models:
+        raise InputError(
+            f"{where}: 'distortion_model' {str(name)[:30]!r} is not supported, expected "
+            f"{', '.join(models)}"
+        )
+    return name, models[name]
+
+
 def _ros_camera(path: Path) -> dict:
     data = _yaml(path)
     where = str(path)
-    name = _get(data, "distortion_model", where)
-    if name not in _ROS_MODELS:
-        raise InputError(
-            f"{where}: 'distortion_model' {str(name)[:30]!r} is not supported, expected "
-            f"{', '.join(_ROS_MODELS)}"
-        )
-    model = _ROS_MODELS[name]
+    model = _distortion_model(data, _ROS_MODELS, where)[1]
     size = []
     for key in ("image_width", "image_height"):
         value = _get(data, key, where)
@@ -340,7 +330,7 @@ def _ros_camera(path: Path) -> dict:
     K_where = f"{where}: 'camera_matrix'"
     return {
         "camera": RawCamera(
-            _intrinsics(_ros_matrix(data, "camera_matrix", (3, 3), where), K_where),
+            camera_matrix(_ros_matrix(data, "camera_matrix", (3, 3), where), K_where),
             _distortion(
                 _ros_matrix(data, "distortion_coefficients", None, where),
                 model,
@@ -368,7 +358,7 @@ def _ros_pair(folder: Path) -> StereoRig:
                 f"({left[key]} and {right[key]})"
             )
     P_left, P_right = left["P"], right["P"]
-    K_rect = _intrinsics(P_left[:, :3], f"{folder / 'left.yaml'}: 'projection_matrix'")
+    K_rect = camera_matrix(P_left[:, :3], f"{folder / 'left.yaml'}: 'projection_matrix'")
     offset = np.linalg.solve(K_rect, P_right[:, 3] - P_left[:, 3])
     if not np.any(np.abs(offset) > 1e-12):
         raise InputError(
@@ -398,19 +388,13 @@ def _kalibr_camera(data: dict, name: str, path: Path) -> dict:
     kind = camera.get("camera_model", "pinhole")
     if kind != "pinhole":
         raise InputError(f"{where}: camera_model {str(kind)[:20]!r} is not supported, only pinhole")
-    distortion_model = _get(camera, "distortion_model", where)
-    if distortion_model not in _KALIBR_MODELS:
-        raise InputError(
-            f"{where}: distortion_model {str(distortion_model)[:20]!r} is not supported, "
-            f"expected {', '.join(_KALIBR_MODELS)}"
-        )
-    model = _KALIBR_MODELS[distortion_model]
+    distortion_model, model = _distortion_model(camera, _KALIBR_MODELS, where)
     values = _number_array(_get(camera, "intrinsics", where), f"{where} intrinsics").ravel()
     if values.size != 4:
         raise InputError(f"{where} intrinsics must be [fu, fv, pu, pv], got {values.size} values")
     fu, fv, pu, pv = values
     K_where = f"{where} intrinsics"
-    K = _intrinsics([[fu, 0, pu], [0, fv, pv], [0, 0, 1]], K_where)
+    K = camera_matrix([[fu, 0, pu], [0, fv, pv], [0, 0, 1]], K_where)
     if distortion_model == "none":
         coefficients = np.zeros(4)
     else:
