@@ -36,3 +36,15 @@ def test_a_motion_is_recovered_from_3d_correspondences():
 def test_too_few_projections_are_refused():
     with pytest.raises(ValueError, match="at least 3"):
         fit_rigid_to_projections(np.zeros((2, 3)), np.zeros((2, 2)), K)
+
+
+def test_points_far_away_and_close_together_still_get_a_motion():
+    # The sky of a semi-real KITTI clip: a few points at the far clamp, 1 mm apart. OpenCV's
+    # SQPnP refuses them (an assertion on their spread); the fit starts from rest instead.
+    rng = np.random.default_rng(0)
+    P = np.column_stack([rng.uniform(-5e-4, 5e-4, (2, 20)).T, np.full(20, 700.0)])
+    R, T = np.eye(3), np.array([0.0, 0.0, -0.5])
+    q = (P @ R.T + T) @ K.T
+    fitted_R, fitted_T = fit_rigid_to_projections(P, q[:, :2] / q[:, 2:], K)
+    residual = (P @ fitted_R.T + fitted_T) @ K.T
+    np.testing.assert_allclose(residual[:, :2] / residual[:, 2:], q[:, :2] / q[:, 2:], atol=1e-3)

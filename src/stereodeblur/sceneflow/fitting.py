@@ -85,7 +85,8 @@ def fit_rigid_to_projections(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rotation and translation whose ``K (R P + T)`` projects the points ``P`` (n, 3) to
     the pixels ``xy`` (n, 2): Levenberg-Marquardt on the reprojection error from ``start``
-    ``(R, T)``, or from OpenCV's SQPnP (n >= 3) without one.
+    ``(R, T)``, or from OpenCV's SQPnP (n >= 3) without one (from rest where SQPnP refuses
+    points too close together).
 
     A small, nearly planar patch has two poses that project it almost alike (a tilt of the
     plane for a shift in depth); SQPnP may return either, a ``start`` near one keeps it.
@@ -98,7 +99,10 @@ def fit_rigid_to_projections(
     if len(P) < 3:
         raise ValueError(f"a rigid motion needs at least 3 projected points, got {len(P)}")
     if start is None:
-        _, rvec, tvec = cv2.solvePnP(P, xy, K, None, flags=cv2.SOLVEPNP_SQPNP)
+        try:
+            _, rvec, tvec = cv2.solvePnP(P, xy, K, None, flags=cv2.SOLVEPNP_SQPNP)
+        except cv2.error:  # points nearly coincide (SQPnP's variance check): start at rest
+            rvec, tvec = np.zeros((3, 1)), np.zeros((3, 1))
     else:
         rvec, tvec = cv2.Rodrigues(np.asarray(start[0], np.float64))[0], np.array(start[1], float)
     rvec, tvec = cv2.solvePnPRefineLM(P, xy, K, None, rvec, tvec.reshape(3, 1))

@@ -15,7 +15,7 @@ from .census import census_descriptors
 from .initial import to_gray, to_gray_u8
 from .settings import SceneFlowSettings
 
-__all__ = ["PreparedFrames", "prepare_frames"]
+__all__ = ["PreparedFrames", "matching_encoding", "prepare_frames"]
 
 MIN_CONTRAST = 2.0 / 255.0  # grey-level std below which a frame counts as textureless
 
@@ -33,7 +33,7 @@ class PreparedFrames:
     normed : tuple of 4 ndarray, (H, W) float32
         ``grays * gain`` clipped to [0, 1].
     u8 : tuple of 4 ndarray, (H, W) uint8
-        8-bit versions of ``normed`` for OpenCV.
+        8-bit versions of ``normed ** matching_gamma`` for OpenCV's matchers.
     codes : tuple of 4 ndarray
         Census descriptors (:func:`census.census_descriptors`).
     segment_image : ndarray, (H, W) or (H, W, 3) float64
@@ -58,6 +58,19 @@ class PreparedFrames:
     other_side_codes: tuple[np.ndarray, ...] | None = None
 
 
+def matching_encoding(gray: np.ndarray, gamma: float) -> np.ndarray:
+    """``gray ** gamma``: linear grey in [0, 1] encoded for 8-bit matching.
+
+    Linear light rounded to 8 bits leaves a deep shadow a handful of levels (a road in
+    shade at 0.03 of full scale: 8 levels), too few for SGBM and DIS; the square root
+    spreads the dark levels (that road: 44 levels) as a camera's encoding does, and makes
+    shot noise about equally strong at every brightness.
+    """
+    if gamma == 1.0:
+        return gray
+    return np.power(np.clip(gray, 0.0, None), np.float32(gamma), dtype=np.float32)
+
+
 def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> PreparedFrames:
     """Grey frames with a common gain (dark inputs use the full 8-bit range) and census codes.
 
@@ -69,10 +82,11 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
     top = max(float(np.percentile(g, 99.5)) for g in grays)
     gain = 1.0 / top if top > 1e-3 else 1.0
     gain = min(gain, settings.max_gain)
-    u8 = [to_gray_u8(g, scale=gain) for g in grays]
 
     def normalised(gray):
         return np.clip(gray * np.float32(gain), 0.0, 1.0)
+
+    u8 = [to_gray_u8(matching_encoding(normalised(g), settings.matching_gamma)) for g in grays]
 
     def codes_of(gray):
         return census_descriptors(

@@ -43,6 +43,7 @@ _SHARES = (
 _POSITIVE = (
     "census_threshold",
     "max_gain",
+    "matching_gamma",
     "min_disparity",
     "fallback_disparity",
     "plane_threshold",
@@ -77,6 +78,10 @@ class SceneFlowSettings:
     # Largest gain that stretches a dark input to the full range (16 = 4 bits).
     # Why: docs/defaults.md#constants-set-once
     max_gain: float = 16.0
+    # The 8-bit frames of the initial matches (SGBM, DIS) are the gained grey raised to this
+    # power (0.5: square root, as the census band; 1: linear light).
+    # Why: docs/defaults.md#matching-encoding
+    matching_gamma: float = 0.5
 
     # --- superpixels (sceneflow.superpixels)
     # None: about 1200 at 640x480, scaled with the image area (paper, supplement B).
