@@ -21,7 +21,16 @@ import numpy as np
 from ..geometry.camera import Exposure, StereoCamera
 from ..geometry.rigid import se3_exp
 
-__all__ = ["PhotoScene", "SemiRealClip", "render_clip", "render_instant", "points_of_view"]
+__all__ = [
+    "PhotoScene",
+    "SemiRealClip",
+    "longest_blur",
+    "moved_pixels",
+    "points_of_view",
+    "render_clip",
+    "render_instant",
+    "write_clip",
+]
 
 VIEWS = ("left", "right")
 DEPTH_TOLERANCE = 0.03  # relative depth within which splats count as one surface
