@@ -216,7 +216,8 @@ def must_show(rows: list[dict], frames: list[str]) -> list[str]:
     return lines
 
 
-def _commit() -> str:
+def commit() -> str:
+    """The short hash of the checked-out commit, or 'unknown'."""
     try:
         return subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
@@ -276,7 +277,7 @@ def main(argv=None) -> int:
         "# Scene flow on real KITTI 2015 pairs",
         "",
         f"Command: `python benchmarks/kitti_sceneflow.py {' '.join(map(str, argv))}`; "
-        f"commit {_commit()}, {datetime.now(UTC):%Y-%m-%d %H:%M} UTC, "
+        f"commit {commit()}, {datetime.now(UTC):%Y-%m-%d %H:%M} UTC, "
         f"{elapsed / 60:.1f} min in all, {warm_up:.0f} s of it a first untimed run that loads or "
         "compiles the numba kernels (time (s): the frame's estimate, wall, 2-core machine; "
         "ours includes reading the frames and the dense flow the boundaries move to).",

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from dataclasses import replace
@@ -44,6 +43,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+from kitti_sceneflow import commit  # this folder's: the scripts run from it
 
 FRAME_RATE = 10.0
 MIN_OBJECT = 300  # px: smaller regions the camera's motion misses stay with the camera
@@ -55,11 +55,6 @@ NAMES = {
     "paper-full": "paper",
     "ours-true-motion": "true motion",
 }
-
-
-def grey(image: np.ndarray) -> np.ndarray:
-    image = np.asarray(image, dtype=np.float32)
-    return image @ np.array([0.299, 0.587, 0.114], np.float32) if image.ndim == 3 else image
 
 
 def fit_motion(points: np.ndarray, seen: np.ndarray, K: np.ndarray):
@@ -111,12 +106,13 @@ def photo_scene(root: Path, sequence: str):
         read_kitti_flow,
     )
     from stereodeblur.io.kitti import open_kitti
+    from stereodeblur.sceneflow.initial import to_gray
     from stereodeblur.synth.photo import PhotoScene
 
     source = open_kitti(root, kind="kitti-2015", sequence=sequence, require_exposure=False)
     camera = source.info.camera
     K = camera.K
-    images = {v: grey(source.read_frame(v, 0)) for v in ("left", "right")}
+    images = {v: to_gray(source.read_frame(v, 0)) for v in ("left", "right")}
     name = f"{sequence}_10.png"
     d1 = read_kitti_disparity(root / "disp_occ_0" / name)
     d2 = read_kitti_disparity(root / "disp_occ_1" / name)
@@ -168,6 +164,7 @@ def photo_scene(root: Path, sequence: str):
 
 def build(root: Path, sequence: str, work: Path, blur: float, noise: float) -> dict:
     """Write the clean and the noisy clip of ``sequence`` under ``work``; their facts."""
+    from stereodeblur.evaluation.metrics import border_for
     from stereodeblur.geometry.camera import Exposure
     from stereodeblur.io.scene import open_scene
     from stereodeblur.synth.photo import longest_blur, render_clip, write_clip
@@ -178,7 +175,7 @@ def build(root: Path, sequence: str, work: Path, blur: float, noise: float) -> d
         return json.loads(facts_path.read_text())
     start = time.perf_counter()
     photo, facts = photo_scene(root, sequence)
-    border = border_px(photo.shape[1])
+    border = border_for(photo.shape[1])
     per_frame = longest_blur(photo, 1.0, border=border)
     duty = min(1.0, blur / per_frame)
     exposure = Exposure(FRAME_RATE, duty / FRAME_RATE)
@@ -202,15 +199,9 @@ def build(root: Path, sequence: str, work: Path, blur: float, noise: float) -> d
     return facts
 
 
-def border_px(width: int) -> int:
-    from stereodeblur.evaluation.metrics import border_for
-
-    return border_for(width)
-
-
 def deblur(scene_dir: Path, method: str, cache: Path) -> dict:
     """PSNR of the blurred and the deblurred middle frame (left view) by ``method``."""
-    from stereodeblur.evaluation.metrics import psnr
+    from stereodeblur.evaluation.metrics import border_for, psnr
     from stereodeblur.evaluation.paper_columns import COLUMNS, TRUE_MOTION
     from stereodeblur.io.scene import open_scene
     from stereodeblur.pipeline import deblur_frame
@@ -224,7 +215,7 @@ def deblur(scene_dir: Path, method: str, cache: Path) -> dict:
     result = deblur_frame(scene, 1, view="left", settings=column.settings(DeblurSettings()))
     seconds = time.perf_counter() - start
     sharp = scene.read_gt_sharp("left", 1)
-    border = border_px(scene.shape[1])
+    border = border_for(scene.shape[1])
     out = {
         "blurred": psnr(result.blurred, sharp, border=border),
         "psnr": psnr(result.image, sharp, border=border),
@@ -232,15 +223,6 @@ def deblur(scene_dir: Path, method: str, cache: Path) -> dict:
     }
     cache.write_text(json.dumps(out))
     return out
-
-
-def _commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def main(argv=None) -> int:
@@ -277,7 +259,7 @@ def main(argv=None) -> int:
         "# Semi-real driving clips from real KITTI 2015 scenes",
         "",
         f"Command: `python benchmarks/kitti_semireal.py {args.root} --frames {args.frames} "
-        f"--work {args.work} --blur {args.blur:g} --noise {args.noise:g}`; commit {_commit()}, "
+        f"--work {args.work} --blur {args.blur:g} --noise {args.noise:g}`; commit {commit()}, "
         f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC, {minutes:.1f} min (clips and results cached "
         "in --work are reused).",
         "",

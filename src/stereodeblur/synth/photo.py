@@ -104,8 +104,10 @@ def moved_pixels(scene: PhotoScene, view: str, points: np.ndarray, s: float):
     """Pixel positions ``(x, y)`` and depth in ``view`` of ``points`` moved to instant ``s``."""
     motions = se3_exp(float(s) * np.asarray(scene.twists, dtype=np.float64))
     labels = scene.labels[view]
-    R, T = motions[labels, :3, :3], motions[labels, :3, 3]
-    moved = np.einsum("hwij,hwj->hwi", R, points) + T
+    moved = np.empty_like(points)
+    for k in np.unique(labels):
+        mine = labels == k
+        moved[mine] = points[mine] @ motions[k, :3, :3].T + motions[k, :3, 3]
     if view == "right":
         moved = moved - np.array([scene.camera.baseline, 0.0, 0.0])
     K = scene.camera.K
@@ -183,10 +185,10 @@ def _fill_holes(image, depth, holes):
             if filled[y, x]:
                 continue
             for step in range(1, H):
-                if y - step >= 0 and filled[y - step, x] and not holes[y - step, x]:
+                if y - step >= 0 and not holes[y - step, x]:
                     out[y, x] = image[y - step, x]
                     break
-                if y + step < H and filled[y + step, x] and not holes[y + step, x]:
+                if y + step < H and not holes[y + step, x]:
                     out[y, x] = image[y + step, x]
                     break
     return out
