@@ -86,7 +86,8 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
     def normalised(gray):
         return np.clip(gray * np.float32(gain), 0.0, 1.0)
 
-    u8 = [to_gray_u8(matching_encoding(normalised(g), settings.matching_gamma)) for g in grays]
+    normed = [normalised(g) for g in grays]
+    u8 = [to_gray_u8(matching_encoding(g, settings.matching_gamma)) for g in normed]
 
     def codes_of(gray):
         return census_descriptors(
@@ -96,7 +97,6 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
             denoise=settings.census_denoise,
         )
 
-    normed = [normalised(g) for g in grays]
     codes = tuple(codes_of(g) for g in normed)
     other_codes = None
     if other_side is not None:
