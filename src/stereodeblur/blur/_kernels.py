@@ -43,7 +43,7 @@ _MIN_CHUNK = 4096
 """Fewer rows than this per chunk are not worth a thread."""
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
-_NO_VISIBILITY = np.zeros((0, 1, 1), np.int16)
+_NO_VISIBILITY = np.zeros((1, 1, 0), np.int16)
 
 
 def _chunks(num_rows: int, per_thread: int = 8) -> list[tuple[int, int]]:
@@ -229,11 +229,13 @@ def _merge_cubic_taps(
     px, py, n, drop_outside, height, width, divisor, acc, mark, taps, out_idx, out_val, out_pos
 ):
     """:func:`_merge_taps` with Keys' cubic taps (:func:`_cubic_sample_taps`); ``taps``:
-    scratch ``(tx, ty, tw)`` for ``16 * n`` of them.
+    scratch ``(tx, ty, tw)`` for ``16 * n`` of them (``mark`` is not used).
 
-    The weights can be negative, so the accumulator's touched cells are marked (and the
-    marks cleared again when emitted); a tap sum of exactly zero is dropped. Bounding boxes
-    larger than the accumulator sort all taps instead.
+    The accumulator is cleared over the bounding box and summed into position by position
+    (the column weights computed once per position), in the order of
+    :func:`_cubic_sample_taps`; a cell whose sum is exactly zero (the weights can be
+    negative), or which no tap reaches, is dropped. Bounding boxes larger than the
+    accumulator sort all taps instead.
     """
     # Taps of a position p lie in [floor(p) - 1, floor(p) + 2]; those in the image count.
     bx0 = max(np.int64(np.floor(px[:n].min())) - 1, 0)
@@ -266,24 +268,37 @@ def _merge_cubic_taps(
                 out_val[out_pos + count] = total / divisor
                 count += 1
         return count
+    acc[:area] = 0.0  # a cell no tap reaches stays 0 and is dropped, as a zero sum is
+    wx = np.empty(4)
+    cols = np.empty(4, np.int64)
     for k in range(n):
-        m = _cubic_sample_taps(px[k], py[k], height, width, drop_outside, tx, ty, tw)
-        for t in range(m):
-            local = (ty[t] - by0) * bw + tx[t] - bx0
-            if mark[local] == 0:
-                mark[local] = 1
-                acc[local] = tw[t]
-            else:
-                acc[local] += tw[t]
+        x0, fx = split_coordinate(px[k])
+        y0, fy = split_coordinate(py[k])
+        for dx in range(-1, 3):  # the column weights once per position
+            wx[dx + 1] = keys_weight(fx - dx)
+            col = x0 + dx
+            if drop_outside and not 0 <= col < width:
+                wx[dx + 1] = 0.0
+            cols[dx + 1] = min(max(col, 0), width - 1) - bx0
+        for dy in range(-1, 3):
+            wy = keys_weight(fy - dy)
+            row = y0 + dy
+            if wy == 0.0 or (drop_outside and not 0 <= row < height):
+                continue
+            base = (min(max(row, 0), height - 1) - by0) * bw
+            for c in range(4):
+                if wx[c] != 0.0:
+                    acc[base + cols[c]] += wy * wx[c]
     count = 0
-    for local in range(area):
-        if mark[local] == 0:
-            continue
-        mark[local] = 0
-        if acc[local] != 0.0:
-            out_idx[out_pos + count] = (by0 + local // bw) * width + bx0 + local % bw
-            out_val[out_pos + count] = acc[local] / divisor
-            count += 1
+    local = 0
+    for row in range(by0, by1 + 1):
+        first = row * width + bx0
+        for c in range(bw):
+            if acc[local] != 0.0:
+                out_idx[out_pos + count] = first + c
+                out_val[out_pos + count] = acc[local] / divisor
+                count += 1
+            local += 1
     return count
 
 
@@ -303,11 +318,11 @@ def _item_positions(
         y = item // width
         x = item - y * width
         own = labels[y, x]
-        layered = visible.shape[0] == n
+        layered = visible.shape[2] == n
         for k in range(n):
             lab = own
-            if layered and visible[k, y, x] >= 0:
-                lab = visible[k, y, x]
+            if layered and visible[y, x, k] >= 0:
+                lab = visible[y, x, k]
             qx, qy = homography_point(homographies, lab, k, float(x), float(y))
             px[k] = clamp(qx, width - 1)
             py[k] = clamp(qy, height - 1)
@@ -527,6 +542,8 @@ def assemble_homography(
     fractions = np.zeros(num_samples, np.float64)
     if visible is None:
         visible = _NO_VISIBILITY
+    else:  # each pixel's instants side by side: one cache line per pixel, not one per instant
+        visible = np.ascontiguousarray(np.moveaxis(visible, 0, -1))
     select = _SELECT_ALL
     if substitute is not None:
         take, indptr, indices, values = substitute
