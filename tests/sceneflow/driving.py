@@ -167,3 +167,83 @@ def driving_pair(
         disparity=scene.disparity["left"][0],
         road=scene.object_ids["left"][0] == 0,
     )
+
+
+def _srgb_8bit(linear: np.ndarray) -> np.ndarray:
+    """Linear light through a camera's 8-bit sRGB encoding and back, as a PNG is read."""
+    v = np.clip(linear, 0.0, 1.0)
+    v = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
+    v = np.round(v * 255.0) / 255.0
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+@dataclass(frozen=True)
+class ShadedHedge:
+    """Four sharp camera frames (left t, right t, left t + 1, right t + 1; grey float32,
+    linear), the camera, the true left-view disparity at t and where the hedge and the bush
+    are seen."""
+
+    frames: tuple[np.ndarray, ...]
+    camera: StereoCamera
+    disparity: np.ndarray
+    hedge: np.ndarray
+    bush: np.ndarray
+
+
+def shaded_hedge(size=(320, 240), *, shade=0.003, shot=1e-3, seed=0) -> ShadedHedge:
+    """A hedge in deep shade (mean ``shade`` of full scale) 7 m away behind a sunlit bush 5 m
+    away, over a road under a bright sky, the camera driving forward 0.4 m per frame; shot
+    noise of variance ``shot`` times the brightness, then 8-bit sRGB (KITTI 2015's 000007
+    has such a hedge)."""
+    width, height = size
+    f = 0.8 * width
+    K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height - 1) / 2], [0.0, 0.0, 1.0]])
+    camera = StereoCamera(K, BASELINE)
+    rng = np.random.default_rng(seed)
+    twist = np.array([0.0, 0.0, -0.4, 0.0, 0.0, 0.0])
+    road = road_texture(rng)
+    bush = roadside_texture(rng, (40, 300), mean=0.45)
+    hedge = shade * roadside_texture(rng, (120, 300), mean=0.5, contrast=0.1) / 0.5
+
+    def wall(name, texture, centre, z):
+        return PlanarObject(
+            normal=[0.0, 0.0, 1.0 / z],
+            twist=twist,
+            texture=_grey(texture),
+            origin=[centre[0], centre[1], z],
+            axes=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            texel_size=0.02 if z < 100 else 2.0,
+            name=name,
+            bounded=z < 100,
+        )
+
+    objects = (
+        PlanarObject(
+            normal=[0.0, 1.0 / CAMERA_HEIGHT, 0.0],
+            twist=twist,
+            texture=_grey(road),
+            origin=[0.0, CAMERA_HEIGHT, 0.5 * road.shape[0] * 0.05],
+            axes=[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            texel_size=0.05,
+            name="road",
+        ),
+        wall("bush", bush, (1.0, CAMERA_HEIGHT - 0.4), 5.0),
+        wall("hedge", hedge, (1.0, CAMERA_HEIGHT - 1.2), 7.0),
+        wall("sky", roadside_texture(rng, mean=0.85, contrast=0.02), (0.0, 0.0), 500.0),
+    )
+    setup = SceneSetup("shaded_hedge", camera, Exposure(FRAME_RATE, 0.0), size, 2, objects)
+    scene = render_scene(setup, num_samples=1)
+    noise = np.random.default_rng(seed + 1)
+    frames = []
+    for index in (0, 1):
+        for view in ("left", "right"):
+            grey = scene.frames[view][index].mean(axis=2)
+            grey = grey + np.sqrt(shot * grey) * noise.standard_normal(grey.shape)
+            frames.append(_srgb_8bit(grey).astype(np.float32))
+    return ShadedHedge(
+        frames=tuple(frames),
+        camera=camera,
+        disparity=scene.disparity["left"][0],
+        hedge=scene.object_ids["left"][0] == 2,
+        bush=scene.object_ids["left"][0] == 1,
+    )

@@ -10,6 +10,7 @@ from stereodeblur.sceneflow.census import (
     census_thresholds,
     census_transform,
     noise_level,
+    texture_fraction,
     wrong_match_cost,
 )
 
@@ -142,3 +143,28 @@ def test_noisy_frames_are_smoothed_before_the_census():
     assert wrong_match_cost(census_descriptors(flat, denoise=0.0)).mean() > 0.4
     clean = census_descriptors(base)  # no noise: no smoothing, the plain census
     np.testing.assert_array_equal(clean, census_transform(base, threshold=census_thresholds(base)))
+
+
+def test_shot_noise_of_bright_regions_does_not_flatten_dark_texture():
+    # Three quarters bright, one quarter a dark texture (0.004 .. 0.012, a hedge in shade),
+    # under shot noise (deviation 0.01 times the square root of the brightness), shifted by
+    # 3 px between the views. Linear light with the image's one noise level (the bright
+    # part's) reads the dark quarter as flat, where every disparity matches; the square root,
+    # where shot noise is equally strong everywhere, keeps its texture and its true match.
+    rng = np.random.default_rng(7)
+    clean = np.concatenate(
+        [np.full((40, 180), 0.5), 0.004 + 0.008 * _texture((40, 60), seed=8)], axis=1
+    )
+    views = [clean + 0.01 * np.sqrt(clean) * rng.standard_normal(clean.shape) for _ in range(2)]
+    left, right = views[0][:, :-3], np.roll(views[1], -3, axis=1)[:, :-3]
+    y, x = np.mgrid[0:40, 190:230]
+    y, x = y.ravel(), x.ravel()
+    seen = {}
+    for gamma in (1.0, 0.5):
+        a, b = (census_descriptors(v, gamma=gamma) for v in (left, right))
+        fraction = np.mean([texture_fraction(c) for c in a[y, x]])
+        true = census_cost(a, b, x, y, x - 3.0, y).mean()
+        wrong = census_cost(a, b, x, y, x - 6.0, y).mean()
+        seen[gamma] = fraction, wrong - true
+    assert seen[1.0][0] < 0.05 and abs(seen[1.0][1]) < 0.02
+    assert seen[0.5][0] > 0.3 and seen[0.5][1] > 0.1

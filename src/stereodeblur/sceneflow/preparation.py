@@ -95,6 +95,7 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
             threshold=settings.census_threshold,
             noise_factor=settings.census_noise_factor,
             denoise=settings.census_denoise,
+            gamma=settings.census_gamma,
         )
 
     codes = tuple(codes_of(g) for g in normed)

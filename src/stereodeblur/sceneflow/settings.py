@@ -44,6 +44,7 @@ _POSITIVE = (
     "census_threshold",
     "max_gain",
     "matching_gamma",
+    "census_gamma",
     "min_disparity",
     "fallback_disparity",
     "plane_threshold",
@@ -72,6 +73,10 @@ class SceneFlowSettings:
     # The band is at least this many times the std of a pixel difference's noise.
     # Why: docs/defaults.md#constants-set-once
     census_noise_factor: float = 1.0
+    # The census compares grey ** census_gamma (1: linear light, the band scaled per pixel;
+    # 0.5: the square root, with one band, the band above at every brightness, for shot noise).
+    # Why: docs/defaults.md#census-encoding
+    census_gamma: float = 1.0
     # Deviation (px) of the Gaussian applied to noisy frames before the census.
     # Why: docs/defaults.md#census-denoising
     census_denoise: float = 1.5
