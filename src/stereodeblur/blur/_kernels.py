@@ -226,10 +226,10 @@ def _cubic_sample_taps(x, y, height, width, drop_outside, tx, ty, tw):
 
 @njit(**_JIT)
 def _merge_cubic_taps(
-    px, py, n, drop_outside, height, width, divisor, acc, mark, taps, out_idx, out_val, out_pos
+    px, py, n, drop_outside, height, width, divisor, acc, taps, out_idx, out_val, out_pos
 ):
     """:func:`_merge_taps` with Keys' cubic taps (:func:`_cubic_sample_taps`); ``taps``:
-    scratch ``(tx, ty, tw)`` for ``16 * n`` of them (``mark`` is not used).
+    scratch ``(tx, ty, tw)`` for ``16 * n`` of them.
 
     The accumulator is cleared over the bounding box and summed into position by position
     (the column weights computed once per position), in the order of
@@ -453,8 +453,8 @@ def _assemble_range(
                 c = 0
             elif cubic:
                 c = _merge_cubic_taps(
-                    px, py, n, drop_outside, height, width, divisor, acc, mark, taps, out_idx,
-                    out_val, pos,
+                    px, py, n, drop_outside, height, width, divisor, acc, taps, out_idx, out_val,
+                    pos,
                 )  # fmt: skip
             else:
                 c = _merge_taps(
