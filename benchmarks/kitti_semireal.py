@@ -120,10 +120,7 @@ def photo_scene(root: Path, sequence: str):
     H, W = d1.shape
     y, x = np.mgrid[0:H, 0:W].astype(np.float64)
     known = np.isfinite(d1) & np.isfinite(d2) & np.isfinite(flow).all(axis=-1) & (d1 > 0)
-    Z = K[0, 0] * camera.baseline / d1[known]
-    points = np.stack(
-        [(x[known] - K[0, 2]) * Z / K[0, 0], (y[known] - K[1, 2]) * Z / K[1, 1], Z], axis=-1
-    )
+    points = camera.backproject(x[known], y[known], camera.disparity_to_depth(d1[known]))
     seen = np.stack([x[known], y[known]], axis=-1) + flow[known]
     ego, _ = fit_motion(points, seen, K)
     twists = [ego]
@@ -131,8 +128,7 @@ def photo_scene(root: Path, sequence: str):
     from stereodeblur.geometry.rigid import se3_exp
 
     M = se3_exp(ego)
-    moved = points @ M[:3, :3].T + M[:3, 3]
-    predicted = (moved[:, :2] / moved[:, 2:]) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+    predicted = camera.project(points @ M[:3, :3].T + M[:3, 3])
     error = np.linalg.norm(predicted - seen, axis=1)
     missed = np.zeros((H, W), dtype=np.uint8)
     missed[known] = is_outlier(error, np.linalg.norm(flow[known], axis=1)).astype(np.uint8)

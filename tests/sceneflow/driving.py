@@ -19,6 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from stereodeblur.geometry import Exposure, StereoCamera
+from stereodeblur.io.srgb import linear_to_srgb, srgb_to_linear
 from stereodeblur.synth.render import PlanarObject, SceneSetup, render_scene
 
 CAMERA_HEIGHT = 1.5
@@ -171,10 +172,7 @@ def driving_pair(
 
 def _srgb_8bit(linear: np.ndarray) -> np.ndarray:
     """Linear light through a camera's 8-bit sRGB encoding and back, as a PNG is read."""
-    v = np.clip(linear, 0.0, 1.0)
-    v = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
-    v = np.round(v * 255.0) / 255.0
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+    return srgb_to_linear(np.round(linear_to_srgb(np.clip(linear, 0.0, 1.0)) * 255.0) / 255.0)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from stereodeblur.sceneflow.census import (
     texture_fraction,
     wrong_match_cost,
 )
+from stereodeblur.sceneflow.preparation import matching_encoding
 
 
 def _texture(shape=(40, 50), seed=0):
@@ -161,7 +162,10 @@ def test_shot_noise_of_bright_regions_does_not_flatten_dark_texture():
     y, x = y.ravel(), x.ravel()
     seen = {}
     for gamma in (1.0, 0.5):
-        a, b = (census_descriptors(v, gamma=gamma) for v in (left, right))
+        a, b = (
+            census_descriptors(matching_encoding(v, gamma), relative=gamma == 1.0)
+            for v in (left, right)
+        )
         fraction = np.mean([texture_fraction(c) for c in a[y, x]])
         true = census_cost(a, b, x, y, x - 3.0, y).mean()
         wrong = census_cost(a, b, x, y, x - 6.0, y).mean()

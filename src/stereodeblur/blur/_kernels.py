@@ -229,7 +229,8 @@ def _merge_cubic_taps(
     px, py, n, drop_outside, height, width, divisor, acc, taps, out_idx, out_val, out_pos
 ):
     """:func:`_merge_taps` with Keys' cubic taps (:func:`_cubic_sample_taps`); ``taps``:
-    scratch ``(tx, ty, tw)`` for ``16 * n`` of them.
+    scratch ``(tx, ty, tw)`` for ``16 * n`` of them (and, summing in place, for one position's
+    four column weights and columns).
 
     The accumulator is cleared over the bounding box and summed into position by position
     (the column weights computed once per position), in the order of
@@ -269,8 +270,7 @@ def _merge_cubic_taps(
                 count += 1
         return count
     acc[:area] = 0.0  # a cell no tap reaches stays 0 and is dropped, as a zero sum is
-    wx = np.empty(4)
-    cols = np.empty(4, np.int64)
+    wx, cols = tw[:4], tx[:4]  # one position's column weights and columns (scratch)
     for k in range(n):
         x0, fx = split_coordinate(px[k])
         y0, fy = split_coordinate(py[k])

@@ -64,6 +64,7 @@ def census_thresholds(
     threshold: float = 0.008,
     noise: float = 0.0,
     noise_factor: float = 1.0,
+    relative: bool = True,
 ) -> np.ndarray:
     """Per-pixel census thresholds: relative to the brightness and above the noise.
 
@@ -74,10 +75,14 @@ def census_thresholds(
     texture still counts; the second keeps comparisons from flipping with
     sensor noise (``noise``, its standard deviation, e.g. from
     :func:`noise_level`; ``sqrt(2) noise`` is that of a difference of two pixels).
+    ``relative=False``: ``threshold`` at every brightness (for an image that is already
+    the square root of linear light, where that is the same band).
     """
     image = np.asarray(image, dtype=np.float64)
-    out = threshold * np.sqrt(np.clip(image, 0.0, None) / 0.25)
-    return np.maximum(out, noise_factor * np.sqrt(2.0) * float(noise)).astype(np.float32)
+    scale = np.sqrt(np.clip(image, 0.0, None) / 0.25) if relative else np.ones_like(image)
+    return np.maximum(threshold * scale, noise_factor * np.sqrt(2.0) * float(noise)).astype(
+        np.float32
+    )
 
 
 def census_transform(image: np.ndarray, *, threshold: float | np.ndarray = 0.008) -> np.ndarray:
@@ -106,17 +111,14 @@ def census_descriptors(
     threshold: float = 0.008,
     noise_factor: float = 1.0,
     denoise: float = 1.5,
-    gamma: float = 1.0,
+    relative: bool = True,
 ) -> np.ndarray:
     """Census descriptors of a grey image with thresholds from its own noise level.
 
-    ``gamma`` 1: the comparisons are made on ``gray`` with :func:`census_thresholds`
-    (relative to the brightness). Otherwise on ``gray ** gamma`` with one band for every
-    pixel, ``threshold`` or the noise's if larger: for ``gamma = 0.5`` the band of the
-    linear rule at every brightness (a difference ``dI`` of linear light is
-    ``dI / (2 sqrt(I))`` of its square root), and the noise measured where shot noise is
-    equally strong at every brightness, so that a dark region's texture is not flattened by
-    the noise of the bright ones.
+    ``relative``: the band scales with the brightness (:func:`census_thresholds`); False
+    for the square root of linear light (``SceneFlowSettings.census_gamma = 0.5``), where
+    one band is the linear rule's at every brightness and shot noise is equally strong
+    everywhere, so that the bright parts' noise does not flatten a dark region's texture.
 
     Where the noise of a pixel difference (``sqrt(2)`` times :func:`noise_level`, times
     ``noise_factor``) exceeds ``threshold``, the image is first smoothed by a Gaussian of
@@ -130,18 +132,13 @@ def census_descriptors(
     mean AEP from 1.09 to 0.64 px (``stereodeblur bench sceneflow``).
     """
     gray = np.asarray(gray, dtype=np.float32)
-    if gamma != 1.0:
-        gray = np.power(np.clip(gray, 0.0, None), np.float32(gamma), dtype=np.float32)
     noise = noise_level(gray)
     if denoise > 0 and noise_factor * np.sqrt(2.0) * noise > threshold:
         gray = ndimage.gaussian_filter(gray, denoise, mode="nearest")
         noise = noise / (2.0 * np.sqrt(np.pi) * denoise)
-    if gamma == 1.0:
-        limits = census_thresholds(
-            gray, threshold=threshold, noise=noise, noise_factor=noise_factor
-        )
-    else:
-        limits = max(threshold, noise_factor * np.sqrt(2.0) * noise)
+    limits = census_thresholds(
+        gray, threshold=threshold, noise=noise, noise_factor=noise_factor, relative=relative
+    )
     return census_transform(gray, threshold=limits)
 
 

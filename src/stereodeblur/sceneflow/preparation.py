@@ -59,7 +59,7 @@ class PreparedFrames:
 
 
 def matching_encoding(gray: np.ndarray, gamma: float) -> np.ndarray:
-    """``gray ** gamma``: linear grey in [0, 1] encoded for 8-bit matching.
+    """``gray ** gamma``: linear grey in [0, 1] encoded for matching (census, SGBM, DIS).
 
     Linear light rounded to 8 bits leaves a deep shadow a handful of levels (a road in
     shade at 0.03 of full scale: 8 levels), too few for SGBM and DIS; the square root
@@ -91,11 +91,11 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
 
     def codes_of(gray):
         return census_descriptors(
-            gray,
+            matching_encoding(gray, settings.census_gamma),
             threshold=settings.census_threshold,
             noise_factor=settings.census_noise_factor,
             denoise=settings.census_denoise,
-            gamma=settings.census_gamma,
+            relative=settings.census_gamma == 1.0,
         )
 
     codes = tuple(codes_of(g) for g in normed)

@@ -90,14 +90,10 @@ class SemiRealClip:
 
 def points_of_view(scene: PhotoScene, view: str) -> np.ndarray:
     """The (H, W, 3) points seen by ``view``, in left-camera coordinates."""
-    K, baseline = scene.camera.K, scene.camera.baseline
+    camera = scene.camera
     d = np.asarray(scene.disparity[view], dtype=np.float64)
-    H, W = d.shape
-    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
-    Z = K[0, 0] * baseline / d
-    X = (x - K[0, 2]) * Z / K[0, 0] + (baseline if view == "right" else 0.0)
-    Y = (y - K[1, 2]) * Z / K[1, 1]
-    return np.stack([X, Y, Z], axis=-1)
+    y, x = np.mgrid[0 : d.shape[0], 0 : d.shape[1]].astype(np.float64)
+    return camera.backproject(x, y, camera.disparity_to_depth(d)) + camera.center(view)
 
 
 def moved_pixels(scene: PhotoScene, view: str, points: np.ndarray, s: float):
@@ -108,13 +104,8 @@ def moved_pixels(scene: PhotoScene, view: str, points: np.ndarray, s: float):
     for k in np.unique(labels):
         mine = labels == k
         moved[mine] = points[mine] @ motions[k, :3, :3].T + motions[k, :3, 3]
-    if view == "right":
-        moved = moved - np.array([scene.camera.baseline, 0.0, 0.0])
-    K = scene.camera.K
-    Z = moved[..., 2]
-    x = K[0, 0] * moved[..., 0] / Z + K[0, 2]
-    y = K[1, 1] * moved[..., 1] / Z + K[1, 2]
-    return x, y, Z
+    xy = scene.camera.project(moved, view)
+    return xy[..., 0], xy[..., 1], moved[..., 2]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -205,8 +196,7 @@ def render_instant(scene: PhotoScene, view: str, s: float, points=None, *, truth
     points = points_of_view(scene, view) if points is None else points
     x, y, z = moved_pixels(scene, view, points, s)
     if truth:
-        K, baseline = scene.camera.K, scene.camera.baseline
-        values.append((K[0, 0] * baseline / z).reshape(-1, 1))
+        values.append(scene.camera.depth_to_disparity(z).reshape(-1, 1))
         if view == "left":
             x1, y1, _ = moved_pixels(scene, view, points, s + 1.0)
             values.append(np.stack([x1 - x, y1 - y], axis=-1).reshape(-1, 2))
@@ -223,12 +213,6 @@ def render_instant(scene: PhotoScene, view: str, s: float, points=None, *, truth
         return out, zbuf
     flow = out[..., channels + 1 : channels + 3] if view == "left" else None
     return out[..., :channels], zbuf, out[..., channels], flow
-
-
-def _instants(frame: int, middle: int, duty_cycle: float, num_samples: int) -> np.ndarray:
-    """Midpoints of ``num_samples`` equal parts of frame ``frame``'s exposure (frames)."""
-    k = (np.arange(num_samples) + 0.5) / num_samples - 0.5
-    return (frame - middle) + duty_cycle * k
 
 
 def longest_blur(scene: PhotoScene, duty_cycle: float, *, border: int = 0) -> float:
@@ -255,8 +239,7 @@ def render_clip(
     """Blurred frames ``0 .. num_frames - 1`` of both views, frame ``middle`` centred on the
     photograph; ``num_samples`` instants per frame (default: twice the longest blur in px,
     at least 8)."""
-    duty = exposure.duty_cycle
-    longest = longest_blur(scene, duty, border=border)
+    longest = longest_blur(scene, exposure.duty_cycle, border=border)
     if num_samples is None:
         num_samples = max(8, int(np.ceil(2 * longest)))
     frames, sharp, disparity, mixed, flow = {}, {}, {}, {}, []
@@ -266,7 +249,7 @@ def render_clip(
         frames[view], sharp[view], disparity[view], mixed[view] = [], [], [], []
         for i in range(num_frames):
             total, near, far = 0.0, np.inf, 0.0
-            for s in _instants(i, middle, duty, num_samples):
+            for s in (i - middle) + exposure.sample_fractions(num_samples):
                 image, zbuf = render_instant(scene, view, s, points)
                 total = total + image.astype(np.float64)
                 near, far = np.minimum(near, zbuf), np.maximum(far, zbuf)
