@@ -61,36 +61,45 @@ def _instants(
                     if d > nearest[iy, ix]:
                         nearest[iy, ix] = d
                         splat[iy, ix] = s
-        # Backward check of the candidates; the nearest covering one wins.
+        # Backward check of the candidates, the own segment first, then the splatted
+        # segments of the 3 x 3 neighbourhood in row order; the nearest covering one wins
+        # (the first of equals). A segment checked before is skipped: same verdict.
         for y in range(height):
+            y0, y1 = max(y - 1, 0), min(y + 2, height)
             for x in range(width):
+                x0, x1 = max(x - 1, 0), min(x + 2, width)
                 own = own_labels[y, x]
-                best = HIDDEN
-                best_d = -np.inf
-                for k in range(-1, 9):
-                    if k < 0:
-                        c = own
-                    else:
-                        ny = y + k // 3 - 1
-                        nx = x + k % 3 - 1
-                        if nx < 0 or ny < 0 or nx >= width or ny >= height:
-                            continue
+                best, best_d, other = HIDDEN, -np.inf, HIDDEN
+                if own >= 0:
+                    best_d = _covering(ref_from_t, labels, inverse_depth, own, own, entering, t, x, y)
+                    best = own if best_d > -np.inf else HIDDEN
+                for ny in range(y0, y1):
+                    for nx in range(x0, x1):
                         c = splat[ny, nx]
-                    if c < 0 or c == best:
-                        continue
-                    px, py = homography_point(ref_from_t, c, t, float(x), float(y))
-                    ix = np.int64(np.floor(px + 0.5))
-                    iy = np.int64(np.floor(py + 0.5))
-                    if ix < 0 or iy < 0 or ix >= width or iy >= height:
-                        if c != own or not entering:  # entering the view: the own segment's
+                        if c < 0 or c == own or c == other or c == best:
                             continue
-                    elif labels[iy, ix] != c:
-                        continue
-                    d = inverse_depth[c, 0] * px + inverse_depth[c, 1] * py + inverse_depth[c, 2]
-                    if d > best_d:
-                        best_d = d
-                        best = c
+                        other = c
+                        d = _covering(ref_from_t, labels, inverse_depth, c, own, entering, t, x, y)
+                        if d > best_d:
+                            best_d, best = d, c
                 out[t, y, x] = best
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _covering(ref_from_t, labels, inverse_depth, c, own, entering, t, x, y) -> float:
+    """Inverse depth of segment ``c`` at pixel ``(x, y)`` at instant ``t`` if ``c`` covers
+    it then (its reference pixel belongs to ``c``; outside the reference image only the own
+    segment, and only with ``entering``), else -inf."""
+    height, width = labels.shape
+    px, py = homography_point(ref_from_t, c, t, float(x), float(y))
+    ix = np.int64(np.floor(px + 0.5))
+    iy = np.int64(np.floor(py + 0.5))
+    if ix < 0 or iy < 0 or ix >= width or iy >= height:
+        if c != own or not entering:  # entering the view: the own segment's
+            return -np.inf
+    elif labels[iy, ix] != c:
+        return -np.inf
+    return inverse_depth[c, 0] * px + inverse_depth[c, 1] * py + inverse_depth[c, 2]
 
 
 def visible_labels(
