@@ -10,6 +10,7 @@ pixels, whose plane and motion predict that flow best (why: ``docs/defaults.md#r
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..geometry.homography import homography, motion_in_view
 from ..geometry.plane import plane_in_view
@@ -79,41 +80,64 @@ def relabel_by_flow(
         best += np.linalg.norm(segment_flow(homographies, xs, ys, own) - target, axis=1)
 
     threshold = margin * np.median(best)
-
-    def error(index, segments):
-        """Distance of other ``segments``' flows at pixels ``index``, plus the margin; inf
-        for one surface."""
-        total = np.full(index.size, threshold)
-        for k, (homographies, target) in enumerate(targets):
-            predicted = segment_flow(homographies, xs[index], ys[index], segments)
-            total += np.linalg.norm(predicted - target[index], axis=1)
-            if k == 0:  # no motion boundary between them: the same surface, no candidate
-                longer = np.maximum(np.hypot(*predicted.T), own_length[index])
-                apart = np.hypot(*(predicted - own_forward[index]).T)
-                same = apart <= np.maximum(jump, relative * longer)
-                total[same] = np.inf
-        return total
-
-    out = own.copy()
-    padded = np.pad(labels, radius, mode="edge")
-
-    def window(dy, dx):
-        return padded[dy : dy + height, dx : dx + width].ravel()
-
-    for dy in range(2 * radius + 1):
-        for dx in range(2 * radius + 1):
-            shifted = window(dy, dx)
-            new = shifted != own
-            # A candidate met one column left or one row up has been weighed already.
-            if dx > 0:
-                new &= shifted != window(dy, dx - 1)
-            if dy > 0:
-                new &= shifted != window(dy - 1, dx)
-            index = np.flatnonzero(new)
-            e = error(index, shifted[index])
-            better = e < best[index]
-            best[index[better]], out[index[better]] = e[better], shifted[index[better]]
+    homographies = np.stack([h for h, _ in targets])
+    flows = np.stack([f for _, f in targets])
+    padded = np.pad(labels, radius, mode="edge").astype(np.int64)
+    out = own.astype(np.int64)
+    _relabel(padded, radius, homographies, flows, own_forward, own_length, best, threshold,
+             float(jump), float(relative), out)  # fmt: skip
+    out = out.astype(labels.dtype)
     return SceneFlow(
         sceneflow.camera, out.reshape(height, width), sceneflow.normals, sceneflow.twists,
         sceneflow.occlusion, sceneflow.view,
     )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _relabel(padded, radius, homographies, flows, own_forward, own_length, best, threshold,
+             jump, relative, out):  # fmt: skip  # pragma: no cover - compiled
+    """Each pixel's candidates of the window, in row order, a candidate met one column left
+    or one row up skipped (weighed already); the least :func:`_distance` wins, below
+    ``best`` (the own segment's, overwritten)."""
+    size = 2 * radius + 1
+    height, width = padded.shape[0] - 2 * radius, padded.shape[1] - 2 * radius
+    for i in range(height):
+        for j in range(width):
+            p = i * width + j
+            own = padded[i + radius, j + radius]
+            for dy in range(size):
+                for dx in range(size):
+                    s = padded[i + dy, j + dx]
+                    if s == own:
+                        continue
+                    if dx > 0 and s == padded[i + dy, j + dx - 1]:
+                        continue
+                    if dy > 0 and s == padded[i + dy - 1, j + dx]:
+                        continue
+                    e = _distance(homographies, flows, own_forward, own_length, threshold,
+                                  jump, relative, p, float(j), float(i), s)  # fmt: skip
+                    if e < best[p]:
+                        best[p] = e
+                        out[p] = s
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _distance(homographies, flows, own_forward, own_length, threshold, jump, relative, p, x, y, s):
+    """Segment ``s``'s end-point distances to the dense flows at pixel ``p`` = ``(x, y)``
+    plus ``threshold``; inf where its forward flow is the own segment's surface (no motion
+    boundary between them)."""
+    total = threshold
+    for k in range(homographies.shape[0]):
+        h = homographies[k, s]
+        q0 = h[0, 0] * x + h[0, 1] * y + h[0, 2]
+        q1 = h[1, 0] * x + h[1, 1] * y + h[1, 2]
+        q2 = h[2, 0] * x + h[2, 1] * y + h[2, 2]
+        fx, fy = q0 / q2 - x, q1 / q2 - y
+        ex, ey = fx - flows[k, p, 0], fy - flows[k, p, 1]
+        total += np.sqrt(ex * ex + ey * ey)
+        if k == 0:
+            longer = max(np.hypot(fx, fy), own_length[p])
+            apart = np.hypot(fx - own_forward[p, 0], fy - own_forward[p, 1])
+            if apart <= max(jump, relative * longer):
+                return np.inf
+    return total
