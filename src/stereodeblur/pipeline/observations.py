@@ -73,17 +73,16 @@ def warp_operator(positions: np.ndarray, shape) -> SparseBlur:
     H, W = shape
     x, y = positions[..., 0].ravel(), positions[..., 1].ravel()
     x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
-    rows, cols, values = [], [], []
-    for dy in (-1, 0, 1, 2):
+    cols = np.empty((H * W, 16), np.int64)  # each row's 16 taps in the order dy, then dx
+    values = np.empty((H * W, 16), np.float32)
+    for i, dy in enumerate((-1, 0, 1, 2)):
         wy, yy = keys_weights(y - (y0 + dy)), np.clip(y0 + dy, 0, H - 1)
-        for dx in (-1, 0, 1, 2):
-            rows.append(np.arange(H * W))
-            cols.append(yy * W + np.clip(x0 + dx, 0, W - 1))
-            values.append(wy * keys_weights(x - (x0 + dx)))
-    matrix = sp.coo_matrix(
-        (np.concatenate(values).astype(np.float32), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(H * W, H * W),
-    ).tocsr()
+        for j, dx in enumerate((-1, 0, 1, 2)):
+            cols[:, 4 * i + j] = yy * W + np.clip(x0 + dx, 0, W - 1)
+            values[:, 4 * i + j] = wy * keys_weights(x - (x0 + dx))
+    indptr = np.arange(0, 16 * H * W + 1, 16, dtype=np.int64)
+    matrix = sp.csr_matrix((values.ravel(), cols.ravel(), indptr), shape=(H * W, H * W))
+    matrix.sum_duplicates()  # the taps clamped onto one pixel, summed in that order
     matrix.eliminate_zeros()
     return SparseBlur(matrix, (H, W))
 
