@@ -71,8 +71,9 @@ def _instants(
                 own = own_labels[y, x]
                 best, best_d, other = HIDDEN, -np.inf, HIDDEN
                 if own >= 0:
-                    best_d = _covering(ref_from_t, labels, inverse_depth, own, own, entering, t, x, y)
-                    best = own if best_d > -np.inf else HIDDEN
+                    d = _covering(ref_from_t, labels, inverse_depth, own, own, entering, t, x, y)
+                    if d > best_d:
+                        best_d, best = d, own
                 for ny in range(y0, y1):
                     for nx in range(x0, x1):
                         c = splat[ny, nx]
