@@ -1,5 +1,7 @@
 """Segment boundaries moved to a dense flow's (sceneflow.relabel)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -104,3 +106,56 @@ def test_a_margin_keeps_the_labels_where_the_flow_is_wrong_everywhere():
     noisy = (relabel_by_flow(estimate, forward, backward, radius=6).labels != estimate.labels).sum()
     kept = relabel_by_flow(estimate, forward, backward, radius=6, margin=1)
     assert noisy > 20 and (kept.labels != estimate.labels).sum() <= 0.1 * noisy
+
+
+def _relabelled_by_definition(sf, forward, backward, radius, jump, relative, margin):
+    """The rule of ``relabel_by_flow`` written out pixel by pixel: the window's segments in
+    row order, each other surface's summed end-point distances plus the margin; the least
+    below the own segment's wins, a tie keeps the earlier."""
+    targets = [(flow_homographies(sf), forward), (flow_homographies(sf.reversed()), backward)]
+    labels, (height, width) = sf.labels, sf.labels.shape
+
+    def distances(segment, x, y):
+        flows = [segment_flow(h, [x], [y], [segment])[0] for h, _ in targets]
+        total = sum(np.hypot(*(f - target[y, x])) for f, (_, target) in zip(flows, targets))
+        return total, flows[0]
+
+    own_totals = [distances(labels[y, x], x, y)[0] for y in range(height) for x in range(width)]
+    threshold = margin * np.median(own_totals)
+    out = labels.copy()
+    for y in range(height):
+        for x in range(width):
+            own = labels[y, x]
+            best, own_forward = distances(own, x, y)
+            seen = {own}
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    s = labels[min(max(y + dy, 0), height - 1), min(max(x + dx, 0), width - 1)]
+                    if s in seen:
+                        continue
+                    seen.add(s)
+                    total, f = distances(s, x, y)
+                    longer = max(np.hypot(*f), np.hypot(*own_forward))
+                    if np.hypot(*(f - own_forward)) <= max(jump, relative * longer):
+                        continue  # the same surface
+                    if total + threshold < best:
+                        best, out[y, x] = total + threshold, s
+    return out
+
+
+def test_every_pixel_takes_the_segment_the_rule_defines():
+    rng = np.random.default_rng(3)
+    blocks = rng.integers(0, 6, size=(4, 5))
+    labels = np.kron(blocks, np.ones((6, 8), dtype=np.int64)).astype(np.int32)
+    normals = np.column_stack([rng.normal(0, 0.01, (6, 2)), rng.uniform(0.1, 0.3, 6)])
+    twists = rng.normal(0, 0.05, (6, 6))
+    sf = SceneFlow(CAMERA, labels, normals, twists, np.zeros((HEIGHT, WIDTH), bool))
+    # The dense flows follow the surfaces 2 px lower and to the right of the estimate's.
+    truth = replace(sf, labels=np.pad(labels, ((2, 0), (2, 0)), mode="edge")[:HEIGHT, :WIDTH])
+    forward = truth.flow() + rng.normal(0, 0.3, (HEIGHT, WIDTH, 2))
+    backward = truth.reversed().flow() + rng.normal(0, 0.3, (HEIGHT, WIDTH, 2))
+    options = dict(radius=3, jump=0.5, relative=0.1, margin=0.2)
+    moved = relabel_by_flow(sf, forward, backward, **options)
+    expected = _relabelled_by_definition(sf, forward, backward, **options)
+    assert (moved.labels != labels).mean() > 0.02  # the rule moves some boundaries here
+    np.testing.assert_array_equal(moved.labels, expected)
