@@ -117,8 +117,8 @@ def _relabelled_by_definition(sf, forward, backward, radius, jump, relative, mar
 
     def distances(segment, x, y):
         flows = [segment_flow(h, [x], [y], [segment])[0] for h, _ in targets]
-        total = sum(np.hypot(*(f - target[y, x])) for f, (_, target) in zip(flows, targets))
-        return total, flows[0]
+        errors = [f - target[y, x] for f, (_, target) in zip(flows, targets, strict=True)]
+        return sum(np.hypot(*e) for e in errors), flows[0]
 
     own_totals = [distances(labels[y, x], x, y)[0] for y in range(height) for x in range(width)]
     threshold = margin * np.median(own_totals)
