@@ -121,3 +121,72 @@ def test_visible_is_checked():
             homography_blur(sf, EXPOSURE, num_samples=5, visible=bad)
     as_int64 = homography_blur(sf, EXPOSURE, num_samples=5, visible=np.zeros((5,) + SHAPE, int))
     assert abs(as_int64.matrix - homography_blur(sf, EXPOSURE, num_samples=5).matrix).max() == 0
+
+
+def _visible_by_definition(ref_from_t, labels, inverse_depth, own):
+    """The module's rule in plain Python: per instant a forward z-buffer of every reference
+    pixel, then per pixel its own segment and the splatted segments of its 3 x 3
+    neighbourhood; the nearest that covers it (its reference pixel is the segment's) wins,
+    the first of equals; outside the reference image only the own segment, and only when
+    ``own`` is None."""
+    t_from_ref = np.linalg.inv(ref_from_t)
+    height, width = labels.shape
+    own_labels = labels if own is None else own
+
+    def mapped(h, x, y):
+        q = h @ np.array([x, y, 1.0])
+        return q[0] / q[2], q[1] / q[2]
+
+    def depth(s, px, py):
+        return inverse_depth[s] @ np.array([px, py, 1.0])
+
+    out = np.empty((ref_from_t.shape[1], height, width), np.int64)
+    for t in range(ref_from_t.shape[1]):
+        nearest, splat = np.full(labels.shape, -np.inf), np.full(labels.shape, HIDDEN)
+        for y in range(height):
+            for x in range(width):
+                s = labels[y, x]
+                qx, qy = mapped(t_from_ref[s, t], x, y)
+                ix, iy = int(np.floor(qx + 0.5)), int(np.floor(qy + 0.5))
+                if 0 <= ix < width and 0 <= iy < height and depth(s, x, y) > nearest[iy, ix]:
+                    nearest[iy, ix], splat[iy, ix] = depth(s, x, y), s
+        for y in range(height):
+            for x in range(width):
+                candidates = [own_labels[y, x]] + [
+                    splat[ny, nx]
+                    for ny in range(max(y - 1, 0), min(y + 2, height))
+                    for nx in range(max(x - 1, 0), min(x + 2, width))
+                ]
+                best, best_d = HIDDEN, -np.inf
+                for c in candidates:
+                    if c < 0:
+                        continue
+                    px, py = mapped(ref_from_t[c, t], x, y)
+                    ix, iy = int(np.floor(px + 0.5)), int(np.floor(py + 0.5))
+                    inside = 0 <= ix < width and 0 <= iy < height
+                    if inside and labels[iy, ix] != c:
+                        continue
+                    if not inside and (c != own_labels[y, x] or own is not None):
+                        continue
+                    if depth(c, px, py) > best_d:
+                        best, best_d = c, depth(c, px, py)
+                out[t, y, x] = best
+    return out
+
+
+@pytest.mark.parametrize("with_own", [False, True])
+def test_every_pixel_shows_the_segment_the_rule_defines(with_own):
+    from stereodeblur.blur.visibility import visible_labels
+    from stereodeblur.geometry.plane import plane_in_view
+
+    shape = (18, 24)
+    sf = random_sceneflow(shape, 5, grid=(3, 4), speed=3.0)
+    fractions = EXPOSURE.sample_fractions(6) + (1.0 if with_own else 0.0)
+    ref_from_t = sf.homographies(fractions)
+    center = sf.camera.center(sf.view)
+    planes = np.stack([plane_in_view(n, center) for n in sf.normals]) @ sf.camera.K_inv
+    own = np.roll(sf.labels, 2, axis=1) if with_own else None
+    visible = visible_labels(ref_from_t, sf.labels, planes, own=own)
+    expected = _visible_by_definition(ref_from_t, sf.labels, planes, own)
+    assert (visible == HIDDEN).any() and (visible != sf.labels).mean() > 0.02
+    np.testing.assert_array_equal(visible, expected)
