@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from stereodeblur.blur.operator import SparseBlur, dot_test, merge_rows, without_motion
+from stereodeblur.blur.operator import (
+    SparseBlur,
+    TiledBlur,
+    dot_test,
+    merge_rows,
+    without_motion,
+)
 
 SHAPE = (12, 15)
 
@@ -97,3 +103,28 @@ def test_without_motion_gives_identity_rows_in_the_mask_only():
     np.testing.assert_array_equal(out[mask], image[mask])
     np.testing.assert_allclose(out[~mask], a.forward(image)[~mask], rtol=1e-6)
     assert dot_test(still, SHAPE + (3,)) < 1e-6
+
+
+@pytest.mark.parametrize("channels", [None, 3])
+def test_tiled_blur_gives_the_products_of_its_sparse_blur(channels):
+    m = _random_matrix(2, np.float32, np.int32)
+    op = SparseBlur(m, SHAPE)
+    tiled = TiledBlur.of(op)
+    assert isinstance(tiled, TiledBlur) and tiled.nnz == m.nnz
+    shape = SHAPE if channels is None else SHAPE + (channels,)
+    rng = np.random.default_rng(3)
+    image = rng.random(shape).astype(np.float32)
+    squared = rng.random(SHAPE).astype(np.float32)
+    for name, args in (("forward", ()), ("adjoint", ()), ("gram", ()), ("gram", (squared,))):
+        got, expected = getattr(tiled, name)(image, *args), getattr(op, name)(image, *args)
+        assert got.shape == shape and got.dtype == np.float32
+        np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(tiled.forward(image.astype(np.float64)), op.forward(image))
+    assert dot_test(tiled, SHAPE) < 1e-5
+    with pytest.raises(ValueError, match="does not match"):
+        tiled.forward(np.zeros((3, 4), np.float32))
+
+
+def test_tiled_blur_of_a_non_compact_matrix_is_the_sparse_blur():
+    op = SparseBlur(_random_matrix(4, np.float64, np.int64), SHAPE)
+    assert TiledBlur.of(op) is op

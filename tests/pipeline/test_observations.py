@@ -132,8 +132,8 @@ def test_a_neighbouring_frame_is_explained_as_well_as_the_frame_itself(tmp_path)
     for name in ("previous", "next"):
         o = found[name]
         assert _weighted_rms(o.operator, sharp, o.blurred, o.weights) < 1.4 * own, name
-        assert dot_test(o.operator, sharp.shape) < 1e-5
-        assert o.operator.matrix.nnz < 1.2 * operators["left"].operator.matrix.nnz
+        assert dot_test(o.operator, sharp.shape) < 1e-4  # float32 products (tiles only)
+        assert o.operator.nnz < 1.2 * operators["left"].operator.matrix.nnz
 
 
 def test_the_first_and_the_last_frame_have_one_temporal_neighbour(scene):

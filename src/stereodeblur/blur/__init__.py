@@ -6,7 +6,8 @@ each interpolated by Keys' cubic convolution (``interpolation='cubic'``, the def
 builders, of :class:`~stereodeblur.settings.DeblurSettings` and of the command line) or
 bilinearly as in the paper (``interpolation='bilinear'``). It returns a :class:`SparseBlur`
 (``forward`` = ``A I``, ``adjoint`` = ``A^T B``, ``gram`` = ``A^T W^2 A I`` in one pass over
-the matrix), the operator that :func:`stereodeblur.deconv.deblur_irls` inverts.
+the matrix), the operator that :func:`stereodeblur.deconv.deblur_irls` inverts;
+:class:`TiledBlur` holds only what its float32 products read.
 :func:`displacement_blur` builds the same kind of operator from 2D flow, and
 :mod:`.trajectories` holds the sampling rules both share.
 
@@ -21,6 +22,7 @@ _EXPORTS = {
     "homography_blur": "stereodeblur.blur.homography",
     "displacement_blur": "stereodeblur.blur.displacement",
     "SparseBlur": "stereodeblur.blur.operator",
+    "TiledBlur": "stereodeblur.blur.operator",
     "dot_test": "stereodeblur.blur.operator",
 }
 

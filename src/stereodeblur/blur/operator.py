@@ -80,10 +80,7 @@ class SparseBlur:
         dtype = np.result_type(image.dtype, np.float32)
         flat = np.ascontiguousarray(image.reshape(n, -1), dtype=dtype)
         if dtype == np.float32 and (tiles := self._tiled()) is not None:
-            from ._tiled import tiled_pixels, to_planar
-
-            tiled = tiles[int(transposed)]
-            return tiled_pixels(tiled, to_planar(flat, tiled.margin)).reshape(image.shape)
+            return _tiled_apply(tiles[int(transposed)], flat).reshape(image.shape)
         M = self._transposed() if transposed else self.matrix
         if not _is_compact(M) or dtype != np.float64:
             return (M @ flat).astype(dtype, copy=False).reshape(image.shape)
@@ -131,14 +128,79 @@ class SparseBlur:
                 blurred = blurred * squared.reshape(self.shape + (1,) * (image.ndim - 2))
             return self.adjoint(blurred)
         flat = np.ascontiguousarray(image.reshape(n, -1), dtype=dtype)
-        from ._tiled import padded_planes, tiled_pixels, tiled_product, to_planar
+        return _tiled_gram(tiles, flat, squared).reshape(image.shape)
 
-        forward, adjoint = tiles
-        weighted = padded_planes(flat.shape[1], n, adjoint.margin)
-        tiled_product(
-            forward, to_planar(flat, forward.margin), weighted, shift=adjoint.margin, scale=squared
-        )
-        return tiled_pixels(adjoint, weighted).reshape(image.shape)
+
+@dataclass(frozen=True, eq=False)
+class TiledBlur:
+    """A float32 :class:`SparseBlur` held only as the row tiles of ``A`` and ``A^T``
+    (:mod:`._tiled`, what its float32 products read), without the CSR matrix: the same
+    products in less memory, for operators that need nothing else (further observations).
+    Images of another dtype are multiplied in float32. Make one with :meth:`of`."""
+
+    tiles: tuple
+    shape: tuple[int, int]
+
+    @classmethod
+    def of(cls, blur: SparseBlur):
+        """``blur``'s tiles (built now if not yet) as a :class:`TiledBlur`; ``blur`` itself
+        if it has none (not float32 values and int32 indices)."""
+        tiles = blur._tiled()
+        return blur if tiles is None else cls(tiles, blur.shape)
+
+    @property
+    def nnz(self) -> int:
+        """Nonzero entries of ``A``."""
+        return int(np.count_nonzero(self.tiles[0].values))
+
+    def _flat(self, image: np.ndarray) -> np.ndarray:
+        image = np.asarray(image)
+        if image.shape[:2] != tuple(self.shape):
+            raise ValueError(
+                f"image shape {image.shape} does not match operator shape {self.shape}"
+            )
+        n = self.shape[0] * self.shape[1]
+        return np.ascontiguousarray(image.reshape(n, -1), dtype=np.float32)
+
+    def forward(self, image: np.ndarray) -> np.ndarray:
+        """Blur ``image``: ``A I`` (float32)."""
+        return _tiled_apply(self.tiles[0], self._flat(image)).reshape(np.shape(image))
+
+    def adjoint(self, image: np.ndarray) -> np.ndarray:
+        """Apply the transpose: ``A^T B`` (float32)."""
+        return _tiled_apply(self.tiles[1], self._flat(image)).reshape(np.shape(image))
+
+    def gram(self, image: np.ndarray, squared_weights: np.ndarray | None = None) -> np.ndarray:
+        """``A^T W^2 A I`` as :meth:`SparseBlur.gram` computes it on float32 images."""
+        squared = None
+        if squared_weights is not None:
+            squared = np.asarray(squared_weights)
+            if squared.shape != tuple(self.shape):
+                raise ValueError(
+                    f"squared_weights shape {squared.shape} does not match {self.shape}"
+                )
+            squared = np.ascontiguousarray(squared.ravel(), dtype=np.float32)
+        return _tiled_gram(self.tiles, self._flat(image), squared).reshape(np.shape(image))
+
+
+def _tiled_apply(tiled, flat: np.ndarray) -> np.ndarray:
+    """The tiled matrix ``tiled`` times the float32 ``(N, C)`` image ``flat``."""
+    from ._tiled import tiled_pixels, to_planar
+
+    return tiled_pixels(tiled, to_planar(flat, tiled.margin))
+
+
+def _tiled_gram(tiles, flat: np.ndarray, squared: np.ndarray | None) -> np.ndarray:
+    """``A^T W^2 A`` times ``flat`` with ``tiles`` = (``A``, ``A^T``), ``W^2 A`` kept in the
+    tiles' planar layout."""
+    from ._tiled import padded_planes, tiled_pixels, tiled_product, to_planar
+
+    forward, adjoint = tiles
+    weighted = padded_planes(flat.shape[1], flat.shape[0], adjoint.margin)
+    tiled_product(
+        forward, to_planar(flat, forward.margin), weighted, shift=adjoint.margin, scale=squared
+    )
+    return tiled_pixels(adjoint, weighted)
 
 
 def merge_rows(base: SparseBlur, other: SparseBlur, mask: np.ndarray) -> SparseBlur:

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..blur.homography import homography_blur
-from ..blur.operator import SparseBlur
+from ..blur.operator import SparseBlur, TiledBlur
 from ..blur.trajectories import homography_positions, keys_weights
 from ..blur.visibility import hidden_fraction, sceneflow_visibility
 from ..deconv.irls import Observation
@@ -158,7 +158,7 @@ def other_view_observation(
     seen &= np.abs(own.disparity()[y, xi] - disparity) < 1.0
     blur = other.operator
     return Observation(
-        compose(blur, warp_operator(positions, (H, W))),
+        TiledBlur.of(compose(blur, warp_operator(positions, (H, W)))),
         blurred,
         _unseen_weights(blur, seen, weights),
     )
@@ -219,7 +219,7 @@ def neighbour_observation(
         positions = homography_positions(sf.homographies(np.array([step])), labels)[:, :, 0]
         blur = build_operator(motion, exposure, settings)
         operator = compose(blur, warp_operator(positions, sf.shape))
-    return Observation(operator, blurred, weights)
+    return Observation(TiledBlur.of(operator), blurred, weights)
 
 
 def view_observations(
