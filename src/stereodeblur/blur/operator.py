@@ -113,14 +113,7 @@ class SparseBlur:
         """
         image = self._check(image)
         n = self.matrix.shape[0]
-        squared = None
-        if squared_weights is not None:
-            squared = np.asarray(squared_weights)
-            if squared.shape != tuple(self.shape):
-                raise ValueError(
-                    f"squared_weights shape {squared.shape} does not match {self.shape}"
-                )
-            squared = np.ascontiguousarray(squared.ravel(), dtype=np.float32)
+        squared = _flat_weights(squared_weights, self.shape)
         dtype = np.result_type(image.dtype, np.float32)
         if dtype != np.float32 or (tiles := self._tiled()) is None:
             blurred = self.forward(image)
@@ -172,15 +165,18 @@ class TiledBlur:
 
     def gram(self, image: np.ndarray, squared_weights: np.ndarray | None = None) -> np.ndarray:
         """``A^T W^2 A I`` as :meth:`SparseBlur.gram` computes it on float32 images."""
-        squared = None
-        if squared_weights is not None:
-            squared = np.asarray(squared_weights)
-            if squared.shape != tuple(self.shape):
-                raise ValueError(
-                    f"squared_weights shape {squared.shape} does not match {self.shape}"
-                )
-            squared = np.ascontiguousarray(squared.ravel(), dtype=np.float32)
+        squared = _flat_weights(squared_weights, self.shape)
         return _tiled_gram(self.tiles, self._flat(image), squared).reshape(np.shape(image))
+
+
+def _flat_weights(squared_weights, shape) -> np.ndarray | None:
+    """``squared_weights`` (``shape``, or None) as a contiguous float32 vector, or None."""
+    if squared_weights is None:
+        return None
+    squared = np.asarray(squared_weights)
+    if squared.shape != tuple(shape):
+        raise ValueError(f"squared_weights shape {squared.shape} does not match {shape}")
+    return np.ascontiguousarray(squared.ravel(), dtype=np.float32)
 
 
 def _tiled_apply(tiled, flat: np.ndarray) -> np.ndarray:

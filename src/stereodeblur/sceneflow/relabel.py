@@ -82,11 +82,10 @@ def relabel_by_flow(
     threshold = margin * np.median(best)
     homographies = np.stack([h for h, _ in targets])
     flows = np.stack([f for _, f in targets])
-    padded = np.pad(labels, radius, mode="edge").astype(np.int64)
-    out = own.astype(np.int64)
+    padded = np.pad(labels, radius, mode="edge")
+    out = own.copy()
     _relabel(padded, radius, homographies, flows, own_forward, own_length, best, threshold,
              float(jump), float(relative), out)  # fmt: skip
-    out = out.astype(labels.dtype)
     return SceneFlow(
         sceneflow.camera, out.reshape(height, width), sceneflow.normals, sceneflow.twists,
         sceneflow.occlusion, sceneflow.view,
