@@ -9,11 +9,14 @@ from stereodeblur.sceneflow.census import (
     census_descriptors,
     census_thresholds,
     census_transform,
+    dark_noise_level,
     noise_level,
+    shot_noise_flattens_the_dark,
     texture_fraction,
     wrong_match_cost,
 )
-from stereodeblur.sceneflow.preparation import matching_encoding
+from stereodeblur.sceneflow.preparation import census_encoding, matching_encoding
+from stereodeblur.sceneflow.settings import SceneFlowSettings
 
 
 def _texture(shape=(40, 50), seed=0):
@@ -172,3 +175,42 @@ def test_shot_noise_of_bright_regions_does_not_flatten_dark_texture():
         seen[gamma] = fraction, wrong - true
     assert seen[1.0][0] < 0.05 and abs(seen[1.0][1]) < 0.02
     assert seen[0.5][0] > 0.3 and seen[0.5][1] > 0.1
+
+
+def _bright_and_dark(shape=(120, 160), dark=0.004):
+    """Three quarters a bright texture, one quarter a dark one (``dark`` of full scale)."""
+    image = 0.3 + 0.4 * _texture(shape, seed=3)
+    image[:, : shape[1] // 4] = dark * (0.5 + _texture((shape[0], shape[1] // 4), seed=4))
+    return image
+
+
+@pytest.mark.parametrize("sigma", [0.003, 0.01, 0.02])
+def test_additive_noise_does_not_count_as_shot_noise(sigma):
+    # Additive noise is as strong in the dark as in the bright parts; clipped at black it
+    # reads about half as strong there, still above a third of the image's level.
+    rng = np.random.default_rng(11)
+    for dark in (0.0, 0.004, 0.05):
+        noisy = np.clip(_bright_and_dark(dark=dark) + sigma * rng.standard_normal((120, 160)), 0, 1)
+        assert dark_noise_level(noisy) > noise_level(noisy) / 3
+        assert not shot_noise_flattens_the_dark(noisy)
+        assert census_encoding(noisy, SceneFlowSettings()) == 1.0
+
+
+def test_shot_noise_over_a_dark_region_counts_and_picks_the_square_root():
+    rng = np.random.default_rng(12)
+    clean = _bright_and_dark()
+    noisy = np.clip(clean + np.sqrt(1e-3 * clean) * rng.standard_normal(clean.shape), 0, 1)
+    assert shot_noise_flattens_the_dark(noisy)
+    assert census_encoding(noisy, SceneFlowSettings()) == 0.5
+    assert census_encoding(noisy, SceneFlowSettings(census_gamma=1.0)) == 1.0  # as asked
+    # The dark quarter's own noise: 0.03 * sqrt(0.004 .. 0.006), far below the image's level.
+    assert dark_noise_level(noisy) < 0.004 < noise_level(noisy)
+    # Without a dark region the same noise leaves the linear census alone.
+    bright = np.clip(0.3 + 0.4 * _texture((120, 160), seed=3), 0, 1)
+    bright = bright + np.sqrt(1e-3 * bright) * rng.standard_normal(bright.shape)
+    assert not shot_noise_flattens_the_dark(bright)
+
+
+def test_a_noiseless_flat_image_keeps_the_linear_census():
+    assert not shot_noise_flattens_the_dark(np.full((32, 32), 0.2))
+    assert census_encoding(np.zeros((32, 32)), SceneFlowSettings()) == 1.0

@@ -35,6 +35,10 @@ OFFSETS = np.array(
 NUM_OFFSETS = len(OFFSETS)
 # Mask of the low bit of every 2-bit field.
 _LOW_BITS = np.uint64(sum(1 << (2 * k) for k in range(NUM_OFFSETS)))
+# Shot-noise test (:func:`shot_noise_flattens_the_dark`): the darkest share of the image and
+# how far below the image's noise level its own must be.
+DARK_SHARE = 0.1
+DARK_NOISE_RATIO = 3.0
 
 
 def noise_level(image: np.ndarray) -> float:
@@ -56,6 +60,47 @@ def noise_level(image: np.ndarray) -> float:
     g = g[:h, :w]
     detail = np.abs(g[0::2, 0::2] - g[0::2, 1::2] - g[1::2, 0::2] + g[1::2, 1::2]) / 2.0
     return float(np.quantile(detail, 0.25) / 0.3186)
+
+
+def dark_noise_level(image: np.ndarray, share: float = DARK_SHARE) -> float:
+    """Noise level (as :func:`noise_level`) of the darkest ``share`` of the 2x2 blocks that
+    have no pixel at or below 0 (noise clipped at black reads weaker than it is)."""
+    g = np.asarray(image, dtype=np.float64)
+    h, w = (g.shape[0] // 2) * 2, (g.shape[1] // 2) * 2
+    g = g[:h, :w]
+    a, b, c, d = g[0::2, 0::2], g[0::2, 1::2], g[1::2, 0::2], g[1::2, 1::2]
+    lit = (np.minimum(np.minimum(a, b), np.minimum(c, d)) > 0).ravel()
+    if not lit.any():
+        return 0.0
+    detail = (np.abs(a - b - c + d) / 2.0).ravel()[lit]
+    mean = ((a + b + c + d) / 4.0).ravel()[lit]
+    count = max(1, int(share * mean.size))
+    dark = np.argpartition(mean, count - 1)[:count]
+    return float(np.quantile(detail[dark], 0.25) / 0.3186)
+
+
+def shot_noise_flattens_the_dark(
+    image: np.ndarray, *, threshold: float = 0.008, noise_factor: float = 1.0
+) -> bool:
+    """Whether the image's one noise level would flatten the texture of its darkest parts.
+
+    True when the noise of the darkest tenth of the image (:func:`dark_noise_level`) is below
+    ``1 / DARK_NOISE_RATIO`` of the image's (:func:`noise_level`) and that level, not the
+    relative band, sets the census band of those dark pixels (:func:`census_thresholds`).
+    Shot noise does this: it grows with the brightness, so the bright parts set the level.
+    Additive noise does not; where the image is smooth in the dark and finely textured in the
+    light, the texture alone may pass the test, which then changes little (without noise
+    both encodings compare the same differences).
+    """
+    g = np.asarray(image, dtype=np.float64)
+    level = noise_level(g)
+    if level <= 0.0:
+        return False
+    dark = np.quantile(g, DARK_SHARE / 2.0)  # about the darkest tenth's median brightness
+    floor = noise_factor * np.sqrt(2.0) * level
+    if floor <= threshold * np.sqrt(max(dark, 0.0) / 0.25):
+        return False
+    return dark_noise_level(g) * DARK_NOISE_RATIO < level
 
 
 def census_thresholds(

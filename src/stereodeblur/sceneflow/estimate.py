@@ -110,7 +110,8 @@ class SceneFlowEstimate:
         pixels whose census cost at the predicted position is below
         ``settings.match_cost``; ``dominant_inliers``: share of the pixels the dominant
         motion explains; ``num_proposals``: distinct plane+motion proposals in the
-        result; ``num_global``: global proposals found.
+        result; ``num_global``: global proposals found; ``census_gamma``: the census's
+        encoding (1 linear, 0.5 the square root: shot noise that would flatten the dark parts).
     """
 
     sceneflow: SceneFlow
@@ -246,6 +247,7 @@ def estimate_scene_flow(
         diagnostics={
             **{f"matched_{k}": v for k, v in matched.items()},
             **_counts(start, chosen),
+            "census_gamma": prepared.census_gamma,
         },
     )
 

@@ -11,11 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .census import census_descriptors
+from .census import census_descriptors, shot_noise_flattens_the_dark
 from .initial import to_gray, to_gray_u8
 from .settings import SceneFlowSettings
 
-__all__ = ["PreparedFrames", "matching_encoding", "prepare_frames"]
+__all__ = ["PreparedFrames", "census_encoding", "matching_encoding", "prepare_frames"]
 
 MIN_CONTRAST = 2.0 / 255.0  # grey-level std below which a frame counts as textureless
 
@@ -45,6 +45,8 @@ class PreparedFrames:
     other_side_codes : tuple of 2 ndarray or None
         Census descriptors of left and right on the other side of t, with the same gain, if
         given.
+    census_gamma : float
+        The census's encoding (:func:`census_encoding`).
     """
 
     grays: tuple[np.ndarray, ...]
@@ -56,6 +58,7 @@ class PreparedFrames:
     contrast_ok: bool
     messages: tuple[str, ...]
     other_side_codes: tuple[np.ndarray, ...] | None = None
+    census_gamma: float = 1.0
 
 
 def matching_encoding(gray: np.ndarray, gamma: float) -> np.ndarray:
@@ -69,6 +72,18 @@ def matching_encoding(gray: np.ndarray, gamma: float) -> np.ndarray:
     if gamma == 1.0:
         return gray
     return np.power(np.clip(gray, 0.0, None), np.float32(gamma), dtype=np.float32)
+
+
+def census_encoding(gray: np.ndarray, settings: SceneFlowSettings) -> float:
+    """The power the census compares: ``settings.census_gamma``, or if that is None, 0.5
+    where shot noise would flatten the dark parts of ``gray`` in linear light
+    (:func:`~.census.shot_noise_flattens_the_dark`), else 1."""
+    if settings.census_gamma is not None:
+        return settings.census_gamma
+    flattened = shot_noise_flattens_the_dark(
+        gray, threshold=settings.census_threshold, noise_factor=settings.census_noise_factor
+    )
+    return 0.5 if flattened else 1.0
 
 
 def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> PreparedFrames:
@@ -89,13 +104,15 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
     normed = [normalised(g) for g in grays]
     u8 = [to_gray_u8(matching_encoding(g, settings.matching_gamma)) for g in normed]
 
+    gamma = census_encoding(normed[0], settings)
+
     def codes_of(gray):
         return census_descriptors(
-            matching_encoding(gray, settings.census_gamma),
+            matching_encoding(gray, gamma),
             threshold=settings.census_threshold,
             noise_factor=settings.census_noise_factor,
             denoise=settings.census_denoise,
-            relative=settings.census_gamma == 1.0,
+            relative=gamma == 1.0,
         )
 
     codes = tuple(codes_of(g) for g in normed)
@@ -130,4 +147,5 @@ def prepare_frames(images, settings: SceneFlowSettings, other_side=None) -> Prep
         contrast_ok=contrast_ok,
         messages=tuple(messages),
         other_side_codes=other_codes,
+        census_gamma=gamma,
     )

@@ -74,9 +74,11 @@ class SceneFlowSettings:
     # Why: docs/defaults.md#constants-set-once
     census_noise_factor: float = 1.0
     # The census compares grey ** census_gamma (1: linear light, the band scaled per pixel;
-    # 0.5: the square root, with one band, the band above at every brightness, for shot noise).
+    # 0.5: the square root, with one band, the band above at every brightness, for shot noise;
+    # None: 0.5 where the frame's noise grows with its brightness so that it would flatten the
+    # dark parts in linear light, else 1).
     # Why: docs/defaults.md#census-encoding
-    census_gamma: float = 1.0
+    census_gamma: float | None = None
     # Deviation (px) of the Gaussian applied to noisy frames before the census.
     # Why: docs/defaults.md#census-denoising
     census_denoise: float = 1.5
@@ -210,7 +212,7 @@ class SceneFlowSettings:
                         f"SceneFlowSettings.{f.name} must be a whole number >= 0, got {value!r}"
                     )
                 continue
-            if value is None and f.name == "motion_prior_share":
+            if value is None and f.name in ("motion_prior_share", "census_gamma"):
                 continue
             if f.type in (bool, "bool"):  # a switch
                 if not isinstance(value, bool):
