@@ -4,12 +4,14 @@ Run from the repository root::
 
     python benchmarks/bench_stereo_frame.py                  # spheres, 640x480, median of 3
     python benchmarks/bench_stereo_frame.py --scene squares --repeats 5 --json out.json
+    python benchmarks/bench_stereo_frame.py --scene long_exposure_roll   # a planar scene: arcs
     python benchmarks/bench_stereo_frame.py --alpha cross-view   # a setting other than the default
     python benchmarks/bench_stereo_frame.py --observations all --irls 6 --cg 10
     python benchmarks/bench_stereo_frame.py --interpolation bilinear   # the paper's sampling
     python benchmarks/bench_stereo_frame.py --local-alpha always
 
-An object scene (``stereodeblur.synth.objects``) is rendered once into ``--work``. A
+An object scene (``stereodeblur.synth.objects``) or a planar motion's scene
+(``stereodeblur.synth.planar``) is rendered once into ``--work``. A
 warm-up process on a 64x48 rendering of the same scene compiles the numba kernels into
 their on-disk cache first (its wall time is reported apart). Each
 repetition is a fresh Python process (``--child``) that imports the package, deblurs
@@ -41,13 +43,14 @@ INDEX = 1
 
 
 def render(work: Path, name: str, size: tuple[int, int]) -> Path:
-    """The object scene ``name`` at ``size`` in ``work`` (rendered once)."""
+    """The object scene or planar motion ``name`` at ``size`` in ``work`` (rendered once)."""
     from stereodeblur.synth.objects import make_object_scene
-    from stereodeblur.synth.planar import write_rendered_scene
+    from stereodeblur.synth.planar import PLANAR_MOTIONS, make_planar_scene, write_rendered_scene
 
     root = work / f"{name}-{size[0]}x{size[1]}"
     if not (root / "camera.json").is_file():
-        write_rendered_scene(make_object_scene(name, size=size), root, overwrite=True)
+        make = make_planar_scene if name in PLANAR_MOTIONS else make_object_scene
+        write_rendered_scene(make(name, size=size), root, overwrite=True)
     return root
 
 
@@ -111,7 +114,7 @@ def run(scene: Path, output: Path, repeats: int, warmup: Path, options: dict) ->
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--scene", default="spheres", help="object scene name (default %(default)s)"
+        "--scene", default="spheres", help="object scene or planar motion (default %(default)s)"
     )
     parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default %(default)s)")
     parser.add_argument(
