@@ -41,6 +41,22 @@ DARK_SHARE = 0.1
 DARK_NOISE_RATIO = 3.0
 
 
+def _blocks(image: np.ndarray, name: str) -> tuple[np.ndarray, ...]:
+    """The four pixels ``a, b, c, d`` (top left, top right, bottom left, bottom right) of the
+    image's whole 2x2 blocks, float64."""
+    g = np.asarray(image, dtype=np.float64)
+    if g.ndim != 2:
+        raise ValueError(f"{name} needs a grey (H, W) image, got shape {g.shape}")
+    g = g[: (g.shape[0] // 2) * 2, : (g.shape[1] // 2) * 2]
+    return g[0::2, 0::2], g[0::2, 1::2], g[1::2, 0::2], g[1::2, 1::2]
+
+
+def _level(detail: np.ndarray) -> float:
+    """Noise deviation from the absolute diagonal Haar details of its blocks (lower quartile
+    over that of ``|N(0, 1)|``); 0 without blocks."""
+    return float(np.quantile(detail, 0.25) / 0.3186) if detail.size else 0.0
+
+
 def noise_level(image: np.ndarray) -> float:
     """Standard deviation of white noise in a grey image, robustly estimated.
 
@@ -51,32 +67,20 @@ def noise_level(image: np.ndarray) -> float:
     deviation, that of smooth (and motion-blurred) image content is small, so
     the quartile sees the noise. Sharp fine texture gives an overestimate.
     """
-    g = np.asarray(image, dtype=np.float64)
-    if g.ndim != 2:
-        raise ValueError(f"noise_level needs a grey (H, W) image, got shape {g.shape}")
-    h, w = (g.shape[0] // 2) * 2, (g.shape[1] // 2) * 2
-    if h == 0 or w == 0:
-        return 0.0
-    g = g[:h, :w]
-    detail = np.abs(g[0::2, 0::2] - g[0::2, 1::2] - g[1::2, 0::2] + g[1::2, 1::2]) / 2.0
-    return float(np.quantile(detail, 0.25) / 0.3186)
+    a, b, c, d = _blocks(image, "noise_level")
+    return _level(np.abs(a - b - c + d) / 2.0)
 
 
 def dark_noise_level(image: np.ndarray, share: float = DARK_SHARE) -> float:
     """Noise level (as :func:`noise_level`) of the darkest ``share`` of the 2x2 blocks that
     have no pixel at or below 0 (noise clipped at black reads weaker than it is)."""
-    g = np.asarray(image, dtype=np.float64)
-    h, w = (g.shape[0] // 2) * 2, (g.shape[1] // 2) * 2
-    g = g[:h, :w]
-    a, b, c, d = g[0::2, 0::2], g[0::2, 1::2], g[1::2, 0::2], g[1::2, 1::2]
-    lit = (np.minimum(np.minimum(a, b), np.minimum(c, d)) > 0).ravel()
-    if not lit.any():
+    a, b, c, d = _blocks(image, "dark_noise_level")
+    lit = np.minimum(np.minimum(a, b), np.minimum(c, d)) > 0
+    detail, mean = np.abs(a - b - c + d)[lit] / 2.0, (a + b + c + d)[lit] / 4.0
+    if not mean.size:
         return 0.0
-    detail = (np.abs(a - b - c + d) / 2.0).ravel()[lit]
-    mean = ((a + b + c + d) / 4.0).ravel()[lit]
     count = max(1, int(share * mean.size))
-    dark = np.argpartition(mean, count - 1)[:count]
-    return float(np.quantile(detail[dark], 0.25) / 0.3186)
+    return _level(detail[np.argpartition(mean, count - 1)[:count]])
 
 
 def shot_noise_flattens_the_dark(
@@ -92,15 +96,15 @@ def shot_noise_flattens_the_dark(
     light, the texture alone may pass the test, which then changes little (without noise
     both encodings compare the same differences).
     """
-    g = np.asarray(image, dtype=np.float64)
-    level = noise_level(g)
+    level = noise_level(image)
     if level <= 0.0:
         return False
-    dark = np.quantile(g, DARK_SHARE / 2.0)  # about the darkest tenth's median brightness
-    floor = noise_factor * np.sqrt(2.0) * level
-    if floor <= threshold * np.sqrt(max(dark, 0.0) / 0.25):
+    dark = np.array([np.quantile(image, DARK_SHARE / 2.0)])  # ~ the darkest tenth's median
+    relative = census_thresholds(dark, threshold=threshold)
+    band = census_thresholds(dark, threshold=threshold, noise=level, noise_factor=noise_factor)
+    if band[0] <= relative[0]:
         return False
-    return dark_noise_level(g) * DARK_NOISE_RATIO < level
+    return dark_noise_level(image) * DARK_NOISE_RATIO < level
 
 
 def census_thresholds(
