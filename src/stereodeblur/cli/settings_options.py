@@ -87,6 +87,12 @@ class SettingOption:
 
 def _options() -> tuple[SettingOption, ...]:
     s = _settings_module()
+    return (*_paper_options(s), *_refinement_options(s))
+
+
+def _paper_options(s) -> tuple[SettingOption, ...]:
+    """The switches of the paper's method: kernels, motion, samples, prior weight, data terms
+    and iterations (``s``: the settings module)."""
     return (
         SettingOption(
             "kernels",
@@ -158,6 +164,13 @@ def _options() -> tuple[SettingOption, ...]:
             type=integer(*ITERATIONS),
             metavar="N",
         ),
+    )
+
+
+def _refinement_options(s) -> tuple[SettingOption, ...]:
+    """The switches past the paper: segments, boundaries, range guard and local alpha
+    (``s``: the settings module)."""
+    return (
         SettingOption(
             "num_segments",
             "--segments",
