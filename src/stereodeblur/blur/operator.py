@@ -38,12 +38,7 @@ class SparseBlur:
         object.__setattr__(self, "matrix", matrix)
 
     def _check(self, image: np.ndarray) -> np.ndarray:
-        image = np.asarray(image)
-        if image.shape[:2] != tuple(self.shape):
-            raise ValueError(
-                f"image shape {image.shape} does not match operator shape {self.shape}"
-            )
-        return image
+        return _checked(image, self.shape)
 
     def _transposed(self) -> sp.csr_matrix:
         """``A^T`` as CSR (built on first use; the float32 products use the tiles instead)."""
@@ -147,11 +142,7 @@ class TiledBlur:
         return int(np.count_nonzero(self.tiles[0].values))
 
     def _flat(self, image: np.ndarray) -> np.ndarray:
-        image = np.asarray(image)
-        if image.shape[:2] != tuple(self.shape):
-            raise ValueError(
-                f"image shape {image.shape} does not match operator shape {self.shape}"
-            )
+        image = _checked(image, self.shape)
         n = self.shape[0] * self.shape[1]
         return np.ascontiguousarray(image.reshape(n, -1), dtype=np.float32)
 
@@ -167,6 +158,14 @@ class TiledBlur:
         """``A^T W^2 A I`` as :meth:`SparseBlur.gram` computes it on float32 images."""
         squared = _flat_weights(squared_weights, self.shape)
         return _tiled_gram(self.tiles, self._flat(image), squared).reshape(np.shape(image))
+
+
+def _checked(image, shape) -> np.ndarray:
+    """``image`` as an array, a ValueError unless its first two axes are ``shape``."""
+    image = np.asarray(image)
+    if image.shape[:2] != tuple(shape):
+        raise ValueError(f"image shape {image.shape} does not match operator shape {shape}")
+    return image
 
 
 def _flat_weights(squared_weights, shape) -> np.ndarray | None:
