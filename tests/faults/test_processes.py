@@ -3,6 +3,8 @@ interrupted run resumes to the output of an uninterrupted one."""
 
 import json
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -30,7 +32,9 @@ def _kill_when_workers_are_busy(scene, out, sig, settings=FAST):
         wait_until(lambda: (out / "run-log.jsonl").exists(), 60, "the run log", process)
         process.send_signal(sig)
         process.wait(timeout=30)
-        deadline = time.monotonic() + 5
+        # A worker still starting up ends once it finds its parent gone: generous on a
+        # loaded machine, and the run's processes must all end.
+        deadline = time.monotonic() + 20
         while tagged_processes(run.mark) and time.monotonic() < deadline:
             time.sleep(0.05)
         left = tagged_processes(run.mark)
@@ -64,6 +68,21 @@ def test_killed_main_process_leaves_no_worker_and_resumes(tiny_scene, reference,
     assert result.code == 0, result.stderr
     same_frames(out, reference)
     assert not list(out.rglob("*.tmp"))
+
+
+def test_a_starting_worker_watches_its_parent_before_the_heavy_imports():
+    """A pool worker unpickles its start function (``clip.worker.init_worker``) before it can
+    watch its parent; that import must not pull in numba and the pipeline, which take seconds on
+    a loaded machine while a killed run's worker lives on."""
+    code = (
+        "import sys, stereodeblur.clip.worker; "
+        "print(sorted(m for m in ('numba', 'stereodeblur.pipeline', 'stereodeblur.sceneflow') "
+        "if m in sys.modules))"
+    )
+    loaded = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.strip()
+    assert loaded == "[]"
 
 
 def test_sigterm_before_the_first_frame_removes_the_folder_it_created(slow_scene, tmp_path):

@@ -24,14 +24,40 @@ frame), :mod:`~stereodeblur.clip.worker` (one task), :mod:`~stereodeblur.clip.ex
 :mod:`~stereodeblur.clip.progress` and :mod:`~stereodeblur.clip.run` (a whole run).
 """
 
-from ..io.outputs import RUN_LOG as LOG_NAME
-from .executors import default_workers
-from .frames import parse_frames
-from .job import ClipJob, ClipReport, FrameRecord
-from .progress import ProgressBar
-from .run import Terminated, deblur_clip
-from .runlog import RunLogContents, parse_run_log, read_run_log
-from .worker import process_task
+import importlib
+
+# Where each public name lives. They are loaded on first use, so that importing one module
+# of the package (a pool worker unpickling its start function) loads only that module and
+# a worker watches its parent before numba, OpenCV and the pipeline are imported.
+_HOMES = {
+    "LOG_NAME": ("..io.outputs", "RUN_LOG"),
+    "ClipJob": (".job", "ClipJob"),
+    "ClipReport": (".job", "ClipReport"),
+    "FrameRecord": (".job", "FrameRecord"),
+    "ProgressBar": (".progress", "ProgressBar"),
+    "RunLogContents": (".runlog", "RunLogContents"),
+    "Terminated": (".run", "Terminated"),
+    "deblur_clip": (".run", "deblur_clip"),
+    "default_workers": (".executors", "default_workers"),
+    "parse_frames": (".frames", "parse_frames"),
+    "parse_run_log": (".runlog", "parse_run_log"),
+    "process_task": (".worker", "process_task"),
+    "read_run_log": (".runlog", "read_run_log"),
+}
+
+
+def __getattr__(name: str):
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module, attribute = _HOMES[name]
+    value = getattr(importlib.import_module(module, __name__), attribute)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_HOMES])
+
 
 __all__ = [
     "LOG_NAME",
