@@ -1,0 +1,253 @@
+"""The default on camera output and with a wrong exposure time: a user's own footage.
+
+Run from the repository root (PyAV for the H.264 column: ``pip install av``)::
+
+    python benchmarks/camera_output.py --work DIR                 # 40 test scenes, 320x240
+    python benchmarks/camera_output.py --work DIR --scenes 4      # smoke run
+
+Scenes: the calibration protocol's test split as its README figures use it
+(``calibrate_defaults.py --split test --skip 200``: the randomised family and the semi-real
+streets, alternating, seeds 1100 on), rendered in linear light with their noise.
+Frame 1 of the left view is deblurred with the defaults and the estimated motion from:
+
+- ``linear``: the rendered frames, the true exposure time;
+- ``x0.5``, ``x2``: the same frames, told half or twice the true exposure (at most the frame
+  interval);
+- ``camera``: every frame of both views through a camera (:func:`camera_frame`: shot noise
+  of :data:`FULL_WELL` electrons at white and :data:`READ_NOISE` electrons of read noise on
+  the linear values, the sRGB curve, 8 bits), a scene whose ``camera.json`` says ``srgb``,
+  the true exposure;
+- ``h264``: those 8-bit frames of each view encoded as one H.264 video (libx264 through
+  PyAV, :data:`BITS_PER_PIXEL` bits per pixel and frame, yuv420p) and decoded again.
+
+Scores: PSNR against ``gt/sharp`` without the protocol's border, of the result and of the
+blurred input it was given; the linear runs in linear values, the camera runs in what a user
+sees, 8-bit sRGB (the truth and the result encoded and rounded alike). Written: ``--output``
+(markdown, default ``benchmarks/results/camera_output_WxH.md``); each run is cached under
+``--work`` with the commit it ran on, so a rerun of the same code resumes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import shutil
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+from calibrate_defaults import code_version, ensure_scene, scene_list
+
+FRAME = 1
+FULL_WELL = 2000.0
+"""Electrons at white: the shot noise of a small sensor at a raised gain (low light)."""
+READ_NOISE = 3.0
+"""Read noise in electrons."""
+BITS_PER_PIXEL = 0.3
+"""H.264 bits per pixel and frame: 1.8 Mbit/s for 640x480 at 20 frames per second."""
+VARIANTS = ("linear", "x0.5", "x2", "camera", "h264")
+
+
+def camera_frame(linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``linear`` (float, [0, 1]) as an 8-bit sRGB camera would store it."""
+
+    electrons = rng.poisson(np.clip(linear, 0.0, 1.0) * FULL_WELL).astype(np.float64)
+    electrons += rng.normal(0.0, READ_NOISE, linear.shape)
+    return encode8(np.clip(electrons / FULL_WELL, 0.0, 1.0))
+
+
+def encode8(linear: np.ndarray) -> np.ndarray:
+    """Linear values in [0, 1] as 8-bit sRGB."""
+    from stereodeblur.io.srgb import linear_to_srgb
+
+    return np.round(linear_to_srgb(np.clip(linear, 0.0, 1.0)) * 255.0).astype(np.uint8)
+
+
+def h264_round_trip(frames: list[np.ndarray], fps: float) -> list[np.ndarray]:
+    """8-bit RGB ``frames`` encoded as one H.264 stream and decoded again (one thread, so
+    the same frames give the same stream); an odd size is padded by its last row or column
+    for the encoder (yuv420p) and cropped again."""
+    import av
+
+    rows, cols = frames[0].shape[:2]
+    frames = [np.pad(f, ((0, rows % 2), (0, cols % 2), (0, 0)), mode="edge") for f in frames]
+    height, width = frames[0].shape[:2]
+    buffer = io.BytesIO()
+    with av.open(buffer, "w", format="mp4") as container:
+        stream = container.add_stream("libx264", rate=round(fps))
+        stream.width, stream.height, stream.pix_fmt = width, height, "yuv420p"
+        stream.bit_rate = int(BITS_PER_PIXEL * width * height * fps)
+        stream.options = {"preset": "medium", "threads": "1"}
+        for frame in frames:
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
+        container.mux(stream.encode())
+    buffer.seek(0)
+    with av.open(buffer) as container:
+        return [f.to_ndarray(format="rgb24")[:rows, :cols] for f in container.decode(video=0)]
+
+
+def camera_scene(root: Path, work: Path, video: bool) -> Path:
+    """The scene ``root`` through the camera (and H.264 if ``video``), written once."""
+    import cv2
+
+    from stereodeblur.io.scene import open_scene
+
+    out = work / ("h264" if video else "camera") / root.name
+    if (out / "camera.json").is_file():
+        return out
+    scene = open_scene(root)
+    seed = int.from_bytes(root.name.encode(), "little") % (2**32)
+    temporary = out.with_name(out.name + ".tmp")
+    shutil.rmtree(temporary, ignore_errors=True)
+    for v, view in enumerate(("left", "right")):
+        rng = np.random.default_rng([seed, v])
+        frames = [camera_frame(scene.read_frame(view, i), rng) for i in range(scene.num_frames)]
+        if video:
+            frames = h264_round_trip(frames, scene.info.exposure.frame_rate)
+        (temporary / view).mkdir(parents=True)
+        for i, frame in enumerate(frames):
+            cv2.imwrite(str(temporary / view / f"{i:06d}.png"), frame[..., ::-1])
+    info = json.loads((root / "camera.json").read_text(encoding="utf-8"))
+    (temporary / "camera.json").write_text(json.dumps(info | {"color": "srgb"}, indent=2))
+    temporary.rename(out)
+    return out
+
+
+def run_variant(root: Path, variant: str, work: Path) -> dict:
+    """PSNR of the default's result and of its input for one variant of scene ``root``."""
+    from stereodeblur.evaluation.metrics import border_for, psnr
+    from stereodeblur.io.scene import open_scene
+    from stereodeblur.io.sources import open_source
+    from stereodeblur.pipeline import deblur_frame
+
+    original = open_scene(root)
+    truth = original.read_gt_sharp("left", FRAME)
+    exposure = original.info.exposure.exposure
+    if variant in ("camera", "h264"):
+        scene = open_scene(camera_scene(root, work, variant == "h264"))
+    else:
+        factor = {"linear": 1.0, "x0.5": 0.5, "x2": 2.0}[variant]
+        exposure = min(factor * exposure, 1.0 / original.info.exposure.frame_rate)
+        scene = open_source(root, exposure=exposure)
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = deblur_frame(scene, FRAME, view="left")
+    seconds = time.perf_counter() - start
+    border = border_for(truth.shape[1])
+    if variant in ("camera", "h264"):  # scored in 8-bit sRGB, what the user sees
+        blurred = scene.read_frame("left", FRAME, linear=False)
+        scores = [
+            psnr(image, encode8(truth) / 255.0, border=border)
+            for image in (encode8(result.image) / 255.0, blurred)
+        ]
+    else:
+        scores = [psnr(image, truth, border=border) for image in (result.image, result.blurred)]
+    return {
+        "psnr": scores[0],
+        "blurred": scores[1],
+        "exposure": exposure,
+        "alpha": float(result.alpha),
+        "seconds": seconds,
+        "warnings": [str(w.message) for w in caught],
+    }
+
+
+def run_scene(kind: str, seed: int, size, work: Path, variants, commit: str) -> dict:
+    root = ensure_scene(kind, seed, size, work)
+    spec = json.loads((root / "gt" / "family.json").read_text(encoding="utf-8"))
+    cache = work / "camera_results" / root.name
+    cache.mkdir(parents=True, exist_ok=True)
+    row = {"scene": root.name, "blur_px": spec["blur_px"], "noise": spec["noise"]}
+    for variant in variants:
+        path = cache / f"{variant}.json"
+        data = json.loads(path.read_text()) if path.is_file() else None
+        if data is None or data.get("commit") != commit:
+            data = run_variant(root, variant, work) | {"commit": commit}
+            path.write_text(json.dumps(data, indent=1))
+        row[variant] = data
+        print(
+            f"{root.name} {variant}: {data['psnr']:.2f} dB (input {data['blurred']:.2f}) "
+            f"{data['seconds']:.1f} s",
+            file=sys.stderr,
+            flush=True,
+        )
+    return row
+
+
+def report(rows, variants, args, seconds: float, commit: str) -> str:
+    width, height = args.size
+    lines = [
+        f"# The default on camera output and with a wrong exposure, {width}x{height}",
+        "",
+        f"`python benchmarks/camera_output.py --work DIR --scenes {args.scenes} --skip "
+        f"{args.skip} --size {width}x{height}`, commit {commit}, {time.strftime('%Y-%m-%d')}, "
+        f"{seconds / 60:.1f} min. The calibration protocol's test split, frame {FRAME}, "
+        "left view, defaults, estimated motion. PSNR dB of the result / of the blurred input "
+        "(linear runs in linear values, camera runs in 8-bit sRGB).",
+        "",
+        "| scene | blur px | noise | " + " | ".join(variants) + " |",
+        "|---|---:|---:|" + "---:|" * len(variants),
+    ]
+    for row in rows:
+        cells = [f"{row[v]['psnr']:.2f} / {row[v]['blurred']:.2f}" for v in variants]
+        lines.append(
+            f"| {row['scene']} | {row['blur_px']:.1f} | {row['noise']:.3f} | "
+            + " | ".join(cells)
+            + " |"
+        )
+    lines += ["", "| variant | mean PSNR | mean input | mean gain | worst gain | below input |"]
+    lines += ["|---|---:|---:|---:|---:|---:|"]
+    for v in variants:
+        gains = [row[v]["psnr"] - row[v]["blurred"] for row in rows]
+        worst = min(range(len(rows)), key=lambda k: gains[k])
+        lines.append(
+            f"| {v} | {statistics.mean(row[v]['psnr'] for row in rows):.2f} | "
+            f"{statistics.mean(row[v]['blurred'] for row in rows):.2f} | "
+            f"{statistics.mean(gains):+.2f} | {gains[worst]:+.2f} ({rows[worst]['scene']}) | "
+            f"{sum(g < 0 for g in gains)} / {len(rows)} |"
+        )
+    warned = {v: sum(bool(row[v]["warnings"]) for row in rows) for v in variants}
+    lines += ["", "Frames with a warning: " + ", ".join(f"{v} {n}" for v, n in warned.items())]
+    return "\n".join(lines) + "\n"
+
+
+def parse(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--work", type=Path, required=True, help="scenes and cached runs")
+    parser.add_argument("--scenes", type=int, default=40)
+    parser.add_argument("--skip", type=int, default=200, help="test scenes skipped first")
+    parser.add_argument("--size", default="320x240", help="WxH (default 320x240)")
+    parser.add_argument("--variants", default=",".join(VARIANTS))
+    parser.add_argument("--output", type=Path)
+    args = parser.parse_args(argv)
+    args.size = tuple(int(v) for v in args.size.lower().split("x"))
+    args.variants = tuple(v for v in args.variants.split(",") if v)
+    unknown = set(args.variants) - set(VARIANTS)
+    if unknown:
+        parser.error(f"unknown variants {sorted(unknown)}; choose from {VARIANTS}")
+    return args
+
+
+def main(argv=None) -> int:
+    args = parse(argv)
+    commit = code_version()
+    start = time.perf_counter()
+    rows = [
+        run_scene(kind, seed, args.size, args.work, args.variants, commit)
+        for kind, seed in scene_list("test", args.scenes, ("family", "street"), args.skip)
+    ]
+    text = report(rows, args.variants, args, time.perf_counter() - start, commit)
+    width, height = args.size
+    output = args.output or Path(f"benchmarks/results/camera_output_{width}x{height}.md")
+    output.write_text(text, encoding="utf-8")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
