@@ -68,13 +68,15 @@ def encode8(linear: np.ndarray) -> np.ndarray:
 
 
 def h264_round_trip(frames: list[np.ndarray], fps: float) -> list[np.ndarray]:
-    """8-bit RGB ``frames`` encoded as one H.264 stream and decoded again (one thread, so
-    the same frames give the same stream); an odd size is padded by its last row or column
-    for the encoder (yuv420p) and cropped again."""
+    """8-bit RGB or grey ``frames`` encoded as one H.264 stream and decoded again (one
+    thread, so the same frames give the same stream); an odd size is padded by its last row
+    or column for the encoder (yuv420p) and cropped again."""
     import av
 
     rows, cols = frames[0].shape[:2]
-    frames = [np.pad(f, ((0, rows % 2), (0, cols % 2), (0, 0)), mode="edge") for f in frames]
+    grey = frames[0].ndim == 2
+    pad = ((0, rows % 2), (0, cols % 2)) + ((), ((0, 0),))[not grey]
+    frames = [np.pad(f, pad, mode="edge") for f in frames]
     height, width = frames[0].shape[:2]
     buffer = io.BytesIO()
     with av.open(buffer, "w", format="mp4") as container:
@@ -83,11 +85,15 @@ def h264_round_trip(frames: list[np.ndarray], fps: float) -> list[np.ndarray]:
         stream.bit_rate = int(BITS_PER_PIXEL * width * height * fps)
         stream.options = {"preset": "medium", "threads": "1"}
         for frame in frames:
-            container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
+            rgb = np.repeat(frame[..., None], 3, axis=2) if frame.ndim == 2 else frame
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(rgb, format="rgb24")))
         container.mux(stream.encode())
     buffer.seek(0)
     with av.open(buffer) as container:
-        return [f.to_ndarray(format="rgb24")[:rows, :cols] for f in container.decode(video=0)]
+        decoded = [f.to_ndarray(format="rgb24")[:rows, :cols] for f in container.decode(video=0)]
+    if grey:
+        return [np.round(f.mean(axis=2)).astype(np.uint8) for f in decoded]
+    return decoded
 
 
 def camera_scene(root: Path, work: Path, video: bool) -> Path:
@@ -110,7 +116,8 @@ def camera_scene(root: Path, work: Path, video: bool) -> Path:
             frames = h264_round_trip(frames, scene.info.exposure.frame_rate)
         (temporary / view).mkdir(parents=True)
         for i, frame in enumerate(frames):
-            cv2.imwrite(str(temporary / view / f"{i:06d}.png"), frame[..., ::-1])
+            bgr = frame if frame.ndim == 2 else frame[..., ::-1]
+            cv2.imwrite(str(temporary / view / f"{i:06d}.png"), bgr)
     info = json.loads((root / "camera.json").read_text(encoding="utf-8"))
     (temporary / "camera.json").write_text(json.dumps(info | {"color": "srgb"}, indent=2))
     temporary.rename(out)
@@ -157,17 +164,30 @@ def run_variant(root: Path, variant: str, work: Path) -> dict:
     }
 
 
-def run_scene(kind: str, seed: int, size, work: Path, variants, commit: str) -> dict:
-    root = ensure_scene(kind, seed, size, work)
-    spec = json.loads((root / "gt" / "family.json").read_text(encoding="utf-8"))
+def source_version() -> str:
+    """The git tree of ``src/`` (and whether it has uncommitted changes): what the cached runs
+    are keyed by, so that a commit elsewhere keeps them."""
+    import subprocess
+
+    run = dict(capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1])
+    try:
+        tree = subprocess.run(["git", "rev-parse", "HEAD:src"], check=True, **run).stdout
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], **run).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return tree.strip() + (" dirty" if dirty.strip() else "")
+
+
+def run_scene(root: Path, facts: dict, work: Path, variants, version: str) -> dict:
+    """Every variant of the scene folder ``root`` (``facts``: its blur and noise), cached."""
     cache = work / "camera_results" / root.name
     cache.mkdir(parents=True, exist_ok=True)
-    row = {"scene": root.name, "blur_px": spec["blur_px"], "noise": spec["noise"]}
+    row = {"scene": root.name} | facts
     for variant in variants:
         path = cache / f"{variant}.json"
         data = json.loads(path.read_text()) if path.is_file() else None
-        if data is None or data.get("commit") != commit:
-            data = run_variant(root, variant, work) | {"commit": commit}
+        if data is None or data.get("source") != version:
+            data = run_variant(root, variant, work) | {"source": version}
             path.write_text(json.dumps(data, indent=1))
         row[variant] = data
         print(
@@ -179,27 +199,16 @@ def run_scene(kind: str, seed: int, size, work: Path, variants, commit: str) -> 
     return row
 
 
-def report(rows, variants, args, seconds: float, commit: str) -> str:
-    width, height = args.size
+def table(rows, variants) -> list[str]:
+    """Per scene, PSNR of the result / of the input; then the means, gains and losses."""
     lines = [
-        f"# The default on camera output and with a wrong exposure, {width}x{height}",
-        "",
-        f"`python benchmarks/camera_output.py --work DIR --scenes {args.scenes} --skip "
-        f"{args.skip} --size {width}x{height}`, commit {commit}, {time.strftime('%Y-%m-%d')}, "
-        f"{seconds / 60:.1f} min. The calibration protocol's test split, frame {FRAME}, "
-        "left view, defaults, estimated motion. PSNR dB of the result / of the blurred input "
-        "(linear runs in linear values, camera runs in 8-bit sRGB).",
-        "",
         "| scene | blur px | noise | " + " | ".join(variants) + " |",
         "|---|---:|---:|" + "---:|" * len(variants),
     ]
     for row in rows:
+        noise = "-" if row["noise"] is None else f"{row['noise']:.3f}"
         cells = [f"{row[v]['psnr']:.2f} / {row[v]['blurred']:.2f}" for v in variants]
-        lines.append(
-            f"| {row['scene']} | {row['blur_px']:.1f} | {row['noise']:.3f} | "
-            + " | ".join(cells)
-            + " |"
-        )
+        lines.append(f"| {row['scene']} | {row['blur_px']:.1f} | {noise} | {' | '.join(cells)} |")
     lines += ["", "| variant | mean PSNR | mean input | mean gain | worst gain | below input |"]
     lines += ["|---|---:|---:|---:|---:|---:|"]
     for v in variants:
@@ -212,16 +221,51 @@ def report(rows, variants, args, seconds: float, commit: str) -> str:
             f"{sum(g < 0 for g in gains)} / {len(rows)} |"
         )
     warned = {v: sum(bool(row[v]["warnings"]) for row in rows) for v in variants}
-    lines += ["", "Frames with a warning: " + ", ".join(f"{v} {n}" for v, n in warned.items())]
+    return lines + [
+        "",
+        "Frames with a warning: " + ", ".join(f"{v} {n}" for v, n in warned.items()),
+    ]
+
+
+def report(scenes, clips, args, seconds: float) -> str:
+    width, height = args.size
+    command = f"python benchmarks/camera_output.py --work DIR --scenes {args.scenes} --skip "
+    command += f"{args.skip} --size {width}x{height}"
+    command += f" --clips {args.clips}" if clips else ""
+    lines = [
+        f"# The default on camera output and with a wrong exposure, {width}x{height}",
+        "",
+        f"`{command}`, commit {code_version()}, {time.strftime('%Y-%m-%d')}, "
+        f"{seconds / 60:.1f} min (cached runs of the same `src/` reused). Frame {FRAME}, left "
+        "view, defaults, estimated motion. PSNR dB of the result / of the blurred input "
+        "(linear runs in linear values, camera runs in 8-bit sRGB).",
+    ]
+    if scenes:
+        lines += ["", f"## The calibration protocol's test split, {width}x{height}", ""]
+        lines += table(scenes, args.variants)
+    if clips:
+        lines += ["", "## Semi-real KITTI clips (kitti_semireal.py), 1242x375", ""]
+        lines += table(clips, args.variants)
     return "\n".join(lines) + "\n"
+
+
+def clip_rows(folder: Path, variants, work: Path, version: str) -> list[dict]:
+    """The rows of ``kitti_semireal.py``'s clips in its ``--work`` folder ``folder``."""
+    rows = []
+    for root in sorted(p for p in folder.iterdir() if (p / "gt" / "sharp").is_dir()):
+        facts = json.loads((folder / f"{root.name.split('_')[0]}.json").read_text())
+        blur = {"blur_px": facts["longest blur (px)"], "noise": None}
+        rows.append(run_scene(root, blur, work, variants, version))
+    return rows
 
 
 def parse(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--work", type=Path, required=True, help="scenes and cached runs")
-    parser.add_argument("--scenes", type=int, default=40)
+    parser.add_argument("--scenes", type=int, default=40, help="test scenes (0: none)")
     parser.add_argument("--skip", type=int, default=200, help="test scenes skipped first")
     parser.add_argument("--size", default="320x240", help="WxH (default 320x240)")
+    parser.add_argument("--clips", type=Path, help="kitti_semireal.py's --work folder")
     parser.add_argument("--variants", default=",".join(VARIANTS))
     parser.add_argument("--output", type=Path)
     args = parser.parse_args(argv)
@@ -235,13 +279,16 @@ def parse(argv=None):
 
 def main(argv=None) -> int:
     args = parse(argv)
-    commit = code_version()
+    version = source_version()
     start = time.perf_counter()
-    rows = [
-        run_scene(kind, seed, args.size, args.work, args.variants, commit)
-        for kind, seed in scene_list("test", args.scenes, ("family", "street"), args.skip)
-    ]
-    text = report(rows, args.variants, args, time.perf_counter() - start, commit)
+    scenes = []
+    for kind, seed in scene_list("test", args.scenes, ("family", "street"), args.skip):
+        root = ensure_scene(kind, seed, args.size, args.work)
+        spec = json.loads((root / "gt" / "family.json").read_text(encoding="utf-8"))
+        facts = {"blur_px": spec["blur_px"], "noise": spec["noise"]}
+        scenes.append(run_scene(root, facts, args.work, args.variants, version))
+    clips = clip_rows(args.clips, args.variants, args.work, version) if args.clips else []
+    text = report(scenes, clips, args, time.perf_counter() - start)
     width, height = args.size
     output = args.output or Path(f"benchmarks/results/camera_output_{width}x{height}.md")
     output.write_text(text, encoding="utf-8")
