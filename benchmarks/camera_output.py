@@ -54,7 +54,6 @@ VARIANTS = ("linear", "x0.5", "x2", "camera", "h264")
 
 def camera_frame(linear: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """``linear`` (float, [0, 1]) as an 8-bit sRGB camera would store it."""
-
     electrons = rng.poisson(np.clip(linear, 0.0, 1.0) * FULL_WELL).astype(np.float64)
     electrons += rng.normal(0.0, READ_NOISE, linear.shape)
     return encode8(np.clip(electrons / FULL_WELL, 0.0, 1.0))
@@ -75,7 +74,7 @@ def h264_round_trip(frames: list[np.ndarray], fps: float) -> list[np.ndarray]:
 
     rows, cols = frames[0].shape[:2]
     grey = frames[0].ndim == 2
-    pad = ((0, rows % 2), (0, cols % 2)) + ((), ((0, 0),))[not grey]
+    pad = [(0, rows % 2), (0, cols % 2)] + [(0, 0)] * (frames[0].ndim - 2)
     frames = [np.pad(f, pad, mode="edge") for f in frames]
     height, width = frames[0].shape[:2]
     buffer = io.BytesIO()
