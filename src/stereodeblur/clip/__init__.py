@@ -28,7 +28,7 @@ import importlib
 
 # Where each public name lives. They are loaded on first use, so that importing one module
 # of the package (a pool worker unpickling its start function) loads only that module and
-# a worker watches its parent before numba, OpenCV and the pipeline are imported.
+# a worker watches its parent before numba and the pipeline are imported.
 _HOMES = {
     "LOG_NAME": ("..io.outputs", "RUN_LOG"),
     "ClipJob": (".job", "ClipJob"),
