@@ -676,15 +676,16 @@ def summary_table(rows, motions) -> list[str]:
     return lines
 
 
-def code_version() -> str:
-    """The repository's commit (and whether the working tree differs), if git can tell."""
+def code_version(revision: str = "HEAD") -> str:
+    """The repository's commit (``revision``, short; ``'HEAD:src'``: the tree of ``src/``) and
+    whether ``src/`` differs from it, if git can tell."""
     import subprocess
 
     try:
         run = dict(
             capture_output=True, text=True, check=True, cwd=Path(__file__).resolve().parents[1]
         )
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], **run).stdout.strip()
+        commit = subprocess.run(["git", "rev-parse", "--short", revision], **run).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], **run).stdout
     except (OSError, subprocess.CalledProcessError):
         return "unknown"

@@ -24,7 +24,7 @@ Scores: PSNR against ``gt/sharp`` without the protocol's border, of the result a
 blurred input it was given; the linear runs in linear values, the camera runs in what a user
 sees, 8-bit sRGB (the truth and the result encoded and rounded alike). Written: ``--output``
 (markdown, default ``benchmarks/results/camera_output_WxH.md``); each run is cached under
-``--work`` with the commit it ran on, so a rerun of the same code resumes.
+``--work`` with the tree of ``src/`` it ran on, so a rerun of the same code resumes.
 """
 
 from __future__ import annotations
@@ -163,20 +163,6 @@ def run_variant(root: Path, variant: str, work: Path) -> dict:
     }
 
 
-def source_version() -> str:
-    """The git tree of ``src/`` (and whether it has uncommitted changes): what the cached runs
-    are keyed by, so that a commit elsewhere keeps them."""
-    import subprocess
-
-    run = dict(capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1])
-    try:
-        tree = subprocess.run(["git", "rev-parse", "HEAD:src"], check=True, **run).stdout
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], **run).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return tree.strip() + (" dirty" if dirty.strip() else "")
-
-
 def run_scene(root: Path, facts: dict, work: Path, variants, version: str) -> dict:
     """Every variant of the scene folder ``root`` (``facts``: its blur and noise), cached."""
     cache = work / "camera_results" / root.name
@@ -278,7 +264,7 @@ def parse(argv=None):
 
 def main(argv=None) -> int:
     args = parse(argv)
-    version = source_version()
+    version = code_version("HEAD:src")  # a commit outside src/ keeps the cached runs
     start = time.perf_counter()
     scenes = []
     for kind, seed in scene_list("test", args.scenes, ("family", "street"), args.skip):

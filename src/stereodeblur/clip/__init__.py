@@ -59,18 +59,4 @@ def __dir__() -> list[str]:
     return sorted([*globals(), *_HOMES])
 
 
-__all__ = [
-    "LOG_NAME",
-    "ClipJob",
-    "ClipReport",
-    "FrameRecord",
-    "ProgressBar",
-    "RunLogContents",
-    "Terminated",
-    "deblur_clip",
-    "default_workers",
-    "parse_frames",
-    "parse_run_log",
-    "process_task",
-    "read_run_log",
-]
+__all__ = list(_HOMES)
