@@ -142,6 +142,9 @@ LOCAL_ALPHA_NOISE = 0.012
 # Where the prior weight varies: 'off' (one alpha per view, the paper's), 'noisy' (only on a
 # frame whose noise estimate is at least LOCAL_ALPHA_NOISE) or 'always'.
 LOCAL_ALPHA_MODES = ("off", "noisy", "always")
+# Where the exposure time comes from (DeblurSettings.exposure): the scene's, or estimated per
+# frame from its blurred frames (stereodeblur.blur.exposure).
+EXPOSURE_SOURCES = ("given", "auto")
 # Why: docs/defaults.md#local-alpha
 DEFAULT_LOCAL_ALPHA = "noisy"
 # Why: docs/defaults.md#boundary-handling
@@ -324,6 +327,11 @@ class DeblurSettings:
         (:func:`stereodeblur.pipeline.alpha.local_scale`, :data:`LOCAL_ALPHA_WINDOW`) in the
         final solve; ``'noisy'`` only on a frame whose noise estimate is at least
         :data:`LOCAL_ALPHA_NOISE`. ``'off'``: one alpha for the whole view (the paper's).
+    exposure : {'given', 'auto'}
+        ``'given'`` (default): the exposure time the scene states (``scene.info.exposure``);
+        ``'auto'``: estimated per frame from the blurred frames of both views and their
+        optical flow (:func:`stereodeblur.pipeline.exposure.estimate_exposure`); a frame
+        found sharp (exposure 0) passes through.
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).
 
@@ -346,6 +354,7 @@ class DeblurSettings:
     relabel_radius: int = RELABEL_RADIUS
     range_guard: bool = DEFAULT_RANGE_GUARD
     local_alpha: str = DEFAULT_LOCAL_ALPHA
+    exposure: str = "given"
     sceneflow: SceneFlowSettings = field(default_factory=SceneFlowSettings)
 
     def __post_init__(self):
@@ -407,6 +416,11 @@ class DeblurSettings:
             raise InputError(
                 f"local_alpha must be one of {', '.join(LOCAL_ALPHA_MODES)}, "
                 f"got {self.local_alpha!r}"
+            )
+        if self.exposure not in EXPOSURE_SOURCES:
+            raise InputError(
+                f"exposure must be one of {', '.join(EXPOSURE_SOURCES)}, got {self.exposure!r}",
+                parameter="exposure",
             )
         if not isinstance(self.sceneflow, SceneFlowSettings):
             raise InputError(

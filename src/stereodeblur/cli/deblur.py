@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 
 from ..errors import InputError, StorageError
 from ..settings import DASK_CONNECT_TIMEOUT
@@ -16,6 +17,7 @@ from .printer import (
 )
 from .settings_options import add_settings_options, settings_from_arguments
 from .sources import (
+    AUTO,
     add_frames_option,
     add_source_argument,
     add_source_options,
@@ -94,7 +96,16 @@ def run(args: argparse.Namespace) -> int:
 
     settings = settings_from_arguments(args)
     spec = source_spec(args)
-    source = open_source(spec)
+    try:
+        source = open_source(spec)
+    except InputError as err:  # a source that states no exposure: estimate it
+        if err.parameter != "exposure" or args.exposure is not None:
+            raise
+        spec = replace(spec, require_exposure=False)
+        source = open_source(spec)
+        args.exposure = AUTO
+    if args.exposure == AUTO:
+        settings = replace(settings, exposure="auto")
     written = [*views_of(args), *(["pointcloud"] if args.point_cloud else [])]
     check_output(args.output, input_paths(spec), subfolders=written, command="deblur")
     frames = None if args.frames is None else select_frames(args.frames, source)

@@ -28,9 +28,16 @@ FRAMES_SYNTAX = (
 
 # What the exposure time is when neither the source nor --exposure gives one.
 _NO_EXPOSURE = {
-    True: "; a source that states none (KITTI, a video whose calibration has none) needs it",
+    True: ", else 'auto': estimated per frame from the blurred frames (KITTI, a video whose "
+    "calibration has none)",
     False: ", else 0: frames taken as sharp",
 }
+AUTO = "auto"
+
+
+def exposure_value(text: str) -> float | str:
+    """Option type of ``deblur --exposure``: a number > 0 or 'auto'."""
+    return AUTO if text == AUTO else positive_number(text)
 
 
 def add_source_argument(parser: argparse.ArgumentParser) -> None:
@@ -65,10 +72,12 @@ def add_source_options(parser: argparse.ArgumentParser, *, require_exposure: boo
     )
     g.add_argument(
         "--exposure",
-        type=positive_number,
-        metavar="SECONDS",
-        help="exposure time in seconds; overrides the one the source states (default: the "
-        f"source's{_NO_EXPOSURE[require_exposure]})",
+        type=exposure_value if require_exposure else positive_number,
+        metavar="SECONDS|auto" if require_exposure else "SECONDS",
+        help="exposure time in seconds"
+        + (", or 'auto': estimated per frame from the blurred frames" if require_exposure else "")
+        + f"; overrides the one the source states (default: the source's"
+        f"{_NO_EXPOSURE[require_exposure]})",
     )
     g.add_argument(
         "--frame-rate",
@@ -94,17 +103,19 @@ def add_source_options(parser: argparse.ArgumentParser, *, require_exposure: boo
 
 
 def source_spec(args: argparse.Namespace, *, require_exposure: bool = True):
-    """The :class:`~stereodeblur.io.sources.SourceSpec` of ``args.source`` and its options."""
+    """The :class:`~stereodeblur.io.sources.SourceSpec` of ``args.source`` and its options
+    (``--exposure auto``: the source's exposure is not needed)."""
     from ..io.sources import SourceSpec
 
+    auto = args.exposure == AUTO
     return SourceSpec.from_arguments(
         args.source,
         calib=args.calib,
-        exposure=args.exposure,
+        exposure=None if auto else args.exposure,
         frame_rate=args.frame_rate,
         color=args.color,
         sequence=args.sequence,
-        require_exposure=require_exposure,
+        require_exposure=require_exposure and not auto,
     )
 
 

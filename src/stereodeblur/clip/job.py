@@ -58,6 +58,7 @@ class FrameRecord:
     input_error: bool = False
     details: str | None = None
     alpha: float | None = None  # the prior weight used (chosen per frame with 'auto')
+    exposure: float | None = None  # seconds the frame was deblurred for (estimated with 'auto')
     # Set when the output's storage refused a write (StorageError): the run stops at once.
     storage_errno: int | None = None
     storage_path: str | None = None

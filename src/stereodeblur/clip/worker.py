@@ -282,6 +282,7 @@ def process_task(
             warnings=tuple(dict.fromkeys(messages)),
             worker=worker,
             alpha=None if result.alpha is None else float(result.alpha),
+            exposure=result.exposure,
         )
         for view, result in results.items()
     )

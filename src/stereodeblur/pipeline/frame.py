@@ -37,6 +37,7 @@ from .alpha import (
     undominated,
 )
 from .deconvolve import guarded_solve
+from .exposure import ExposureEstimate, estimate_exposure
 from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import (
     NEIGHBOURS,
@@ -73,14 +74,17 @@ class FrameResult:
     they came from, per IRLS iteration), empty with fixed weights; ``trust`` the trust in
     the blur model per pixel (``boundary_weights='adaptive'`` or ``'gated'``, else None).
     ``timings``: seconds of ``'motion'`` (reading the frames included; from
-    :func:`deblur_stereo_frame` an equal share of the stereo frame's), ``'operator'`` and
+    :func:`deblur_stereo_frame` an equal share of the stereo frame's, and so of
+    ``'exposure'`` with ``settings.exposure='auto'``), ``'operator'`` and
     ``'deconvolution'`` (data weights, trust and alpha included; the further observations'
     operators in ``'observations'``). ``observations``: the names of the further
     observations the estimate used (``settings.observations``), e.g. ``('other-view',
     'next', 'previous')``. ``unexplained``: the pixels the range guard deblurred with no
     motion (``settings.range_guard``; bool ``(H, W)``), None where it found none.
     ``alpha_scale``: the factor of ``alpha`` per pixel (``settings.local_alpha``; float32
-    ``(H, W)``), None where one alpha holds for the whole view.
+    ``(H, W)``), None where one alpha holds for the whole view. ``exposure``: the exposure
+    time (seconds) the frame was deblurred for, given or estimated (``settings.exposure``);
+    at 0 the blurred frame passes through.
     """
 
     index: int
@@ -95,6 +99,7 @@ class FrameResult:
     observations: tuple = ()
     unexplained: np.ndarray | None = None
     alpha_scale: np.ndarray | None = None
+    exposure: float | None = None
 
     @property
     def image(self) -> np.ndarray:
@@ -106,13 +111,15 @@ class StereoFrameResult:
     """The deblurred views of one stereo frame, from one window and one motion.
 
     ``frames`` (dict) maps each requested view to its :class:`FrameResult`; ``timings`` holds
-    the seconds of the shared stages, ``'read'`` and ``'motion'``.
+    the seconds of the shared stages, ``'read'``, ``'exposure'`` (``settings.exposure='auto'``)
+    and ``'motion'``. ``exposure``: the estimate with ``settings.exposure='auto'``, else None.
     """
 
     index: int
     frames: dict
     motion: StereoMotion
     timings: dict = field(default_factory=dict)
+    exposure: ExposureEstimate | None = None
 
 
 def build_view_operator(window: FrameWindow, motion: FrameMotion, settings: DeblurSettings):
@@ -152,6 +159,8 @@ def deblur_view(
     """
     view, timings = motion.view, dict(timings or {})
     check_motion(motion, window, view)
+    if window.exposure.exposure == 0:
+        return _passed_through(window, motion, timings)
     if operator is None:
         start = time.perf_counter()
         report(progress, f"blur operator ({settings.kernels})")
@@ -202,7 +211,16 @@ def deblur_view(
         tuple(o.name for o in observations),
         unexplained,
         terms.alpha_scale,
+        window.exposure.exposure,
     )
+
+
+def _passed_through(window: FrameWindow, motion: FrameMotion, timings: dict) -> FrameResult:
+    """The result of a sharp frame (exposure 0): the blurred frame itself."""
+    blurred = window.blurred(motion.view)
+    image = np.array(blurred, dtype=np.float32)
+    result = DeblurResult(image, np.ones(blurred.shape[:2], np.float32), ())
+    return FrameResult(window.index, motion.view, blurred, result, motion, timings, exposure=0.0)
 
 
 def _judged(blurred, operator, terms, settings, weights, observations, progress):
@@ -402,6 +420,7 @@ def deblur_frame(
     start = time.perf_counter()
     check_gt(scene, index, settings, (view,), motion=motion is None)
     window = read_window(scene, index, (view,), settings, motion=motion is None)
+    window, _ = _exposed(window, settings, progress)
     if motion is None:
         report(progress, f"motion ({settings.motion_source})")
         motion = stereo_motion(scene, window, (view,), settings, progress=progress).views[view]
@@ -441,6 +460,10 @@ def deblur_stereo_frame(
     window = read_window(scene, index, needed, settings, estimate=sceneflow is None)
     timings["read"] = time.perf_counter() - start
     start = time.perf_counter()
+    window, exposure = _exposed(window, settings, prefixed(progress, f"{label}: "))
+    if exposure is not None:
+        timings["exposure"] = time.perf_counter() - start
+    start = time.perf_counter()
     report(progress, f"{label}: motion ({settings.motion_source})")
     motion = stereo_motion(
         scene,
@@ -451,7 +474,11 @@ def deblur_stereo_frame(
         progress=prefixed(progress, f"{label}: "),
     )
     timings["motion"] = time.perf_counter() - start
-    share = {"motion": sum(timings.values()) / len(views)}
+    share = {k: timings[k] / len(views) for k in timings.keys() & {"exposure"}}
+    share["motion"] = (timings["read"] + timings["motion"]) / len(views)
+    if window.exposure.exposure == 0:  # sharp frames pass through
+        frames = {v: _passed_through(window, motion.views[v], share) for v in views}
+        return StereoFrameResult(index, frames, motion, timings, exposure)
     operators, seconds, terms = {}, {}, {}
     if cross_view or kinds:  # every operator first: the views use each other's
         for view in needed:
@@ -492,4 +519,16 @@ def deblur_stereo_frame(
             observations=tuple(observations),
         )
         del seen, other, observations  # freed before the next view's are built (peak memory)
-    return StereoFrameResult(index, frames, motion, timings)
+    return StereoFrameResult(index, frames, motion, timings, exposure)
+
+
+def _exposed(window: FrameWindow, settings: DeblurSettings, progress):
+    """``window`` with its exposure estimated (``settings.exposure='auto'``) and the estimate,
+    or ``window`` as it is and None."""
+    if settings.exposure != "auto":
+        return window, None
+    report(progress, "exposure (estimated from the frames)")
+    found = estimate_exposure(window)
+    seconds, duty = found.exposure.exposure, found.exposure.duty_cycle
+    report(progress, f"exposure {seconds:.4g} s (duty cycle {duty:.2f}, {found.windows} windows)")
+    return replace(window, exposure=found.exposure), found

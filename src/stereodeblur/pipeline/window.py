@@ -173,11 +173,13 @@ def frames_needed(
             needed += [(v, other) for v in VIEWS]
     elif source == "gt":
         needed.append(("left", index))  # the superpixels are cut on the left frame
+    sides = (neighbour,) if other is None else (neighbour, other)
     sides_read = settings.boundary_weights in TRUST_HANDLINGS
     sides_read |= "neighbours" in observation_kinds(settings)  # observations of the view
     if (motion and uses_dense_flow(settings)) or sides_read:
-        sides = (neighbour,) if other is None else (neighbour, other)
         needed += [(view, i) for view in views for i in sides]
+    if settings.exposure == "auto":  # both views' blur against their motion
+        needed += [(v, i) for v in VIEWS for i in (index, *sides)]
     return list(dict.fromkeys(needed))
 
 
