@@ -205,6 +205,7 @@ def test_a_neighbour_predicted_far_worse_than_the_other_view_is_weighed_down():
 
 
 @pytest.mark.parametrize("alpha", ["held-out", 1e-3])
+@pytest.mark.filterwarnings("ignore:frame 1. the exposure given")  # the moved frame misleads it
 def test_a_misaligned_neighbouring_frame_is_weighed_down_in_the_stereo_frame(tmp_path, alpha):
     rendered = make_object_scene("squares", size=(128, 96), num_samples=16)
     frames = {}  # frame 2 moved by 4 px: not the motion of frames 0 and 1

@@ -10,6 +10,7 @@ import pytest
 from stereodeblur.deconv.trust import motion_trust, near_motion_boundaries
 from stereodeblur.errors import InputError
 from stereodeblur.io.scene import open_scene
+from stereodeblur.io.sources import open_source
 from stereodeblur.pipeline import (
     DeblurSettings,
     deblur_frame,
@@ -104,7 +105,8 @@ def test_true_motion_reads_each_frame_once(scene, monkeypatch):
     reads, estimates, flows = _count(monkeypatch, scene)
     deblur_stereo_frame(scene, 1, settings=TRUE)
     assert reads == Counter({(v, i): 1 for v in ("left", "right") for i in (0, 1, 2)})
-    assert estimates == [] and flows == []
+    assert estimates == []
+    assert len(flows) == len(set(flows)) == 4  # the exposure check's, each view both ways
 
 
 @pytest.mark.parametrize(
@@ -174,13 +176,13 @@ def test_timings_name_the_stages(scene, observations):
     if observations != "single":
         stages.add("observations")
     stereo = deblur_stereo_frame(scene, 1, settings=settings)
-    assert set(stereo.timings) == {"read", "motion"}
-    shared = sum(stereo.timings.values())
+    assert set(stereo.timings) == {"read", "exposure", "motion"}
     for result in stereo.frames.values():
-        assert set(result.timings) == stages
-        assert result.timings["motion"] == shared / 2
+        assert set(result.timings) == stages | {"exposure"}
+        assert result.timings["motion"] == (stereo.timings["read"] + stereo.timings["motion"]) / 2
+        assert result.timings["exposure"] == stereo.timings["exposure"] / 2
     alone = deblur_frame(scene, 1, settings=settings)
-    assert set(alone.timings) == stages
+    assert set(alone.timings) == stages | {"exposure"}
 
 
 def test_progress_names_frame_and_view(scene):
@@ -189,7 +191,8 @@ def test_progress_names_frame_and_view(scene):
     settings = DeblurSettings(**FAST, motion_source="gt", alpha=1e-3, observations="other-view")
     deblur_stereo_frame(scene, 1, settings=settings, progress=seen.append)
     stages = [p.stage for p in seen]
-    assert stages[0] == "frame 1: motion (gt)"
+    assert stages[:3] == ["frame 1: exposure check", stages[1], "frame 1: motion (gt)"]
+    assert stages[1].startswith("frame 1: exposure 0.0")
     assert "frame 1 right: blur operator (homography)" in stages
     irls = [p for p in seen if p.stage == "frame 1 left: IRLS"]
     assert [(p.done, p.total) for p in irls] == [(1, 2), (2, 2)]
@@ -209,3 +212,21 @@ def test_a_given_scene_flow_replaces_the_estimate(scene, monkeypatch):
         deblur_stereo_frame(scene, 1, settings=settings, sceneflow=to_right_view(sceneflow))
     with pytest.raises(InputError, match="motion_source='sceneflow'"):
         deblur_stereo_frame(scene, 1, settings=TRUE, sceneflow=sceneflow)
+
+
+def test_a_frame_of_exposure_zero_passes_through(scene):
+    """No exposure, no blur: both views come back as their blurred frames, after the motion."""
+    sharp = open_source(scene.root, exposure=0.0)
+    stereo = deblur_stereo_frame(sharp, 1, settings=ESTIMATED)
+    for view in ("left", "right"):
+        frame = stereo.frames[view]
+        assert np.array_equal(frame.image, np.clip(scene.read_frame(view, 1), 0, 1))
+        assert frame.exposure == 0.0 and frame.motion.sceneflow is not None
+    assert stereo.exposure is None  # given, not estimated
+
+
+def test_the_exposure_estimated_per_stereo_frame_is_the_one_deblurred_for(scene):
+    stereo = deblur_stereo_frame(scene, 1, settings=replace(ESTIMATED, exposure="auto"))
+    found = stereo.exposure.exposure
+    assert found.frame_rate == scene.info.exposure.frame_rate and "exposure" in stereo.timings
+    assert {f.exposure for f in stereo.frames.values()} == {found.exposure}

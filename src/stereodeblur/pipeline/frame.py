@@ -37,8 +37,8 @@ from .alpha import (
     undominated,
 )
 from .deconvolve import guarded_solve
-from .exposure import ExposureEstimate, estimate_exposure
-from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
+from .exposure import ExposureEstimate, estimate_exposure, exposure_doubt
+from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion, view_dense_flow
 from .observations import (
     NEIGHBOURS,
     NamedObservation,
@@ -112,7 +112,8 @@ class StereoFrameResult:
 
     ``frames`` (dict) maps each requested view to its :class:`FrameResult`; ``timings`` holds
     the seconds of the shared stages, ``'read'``, ``'exposure'`` (``settings.exposure='auto'``)
-    and ``'motion'``. ``exposure``: the estimate with ``settings.exposure='auto'``, else None.
+    and ``'motion'``. ``exposure``: the frames' estimate of the exposure (deblurred for with
+    ``settings.exposure='auto'``, else the check of the given one; None for a given 0).
     """
 
     index: int
@@ -416,15 +417,21 @@ def deblur_frame(
             scene, index, views=(view,), settings=settings, progress=progress
         )
         return stereo.frames[view]
-    progress = prefixed(progress, f"frame {scene.numbering.number(index)} {view}: ")
+    number = scene.numbering.number(index)
+    progress = prefixed(progress, f"frame {number} {view}: ")
     start = time.perf_counter()
     check_gt(scene, index, settings, (view,), motion=motion is None)
     window = read_window(scene, index, (view,), settings, motion=motion is None)
-    window, _ = _exposed(window, settings, progress)
+    timings = {}
     if motion is None:
+        window, _, dense = _exposed(window, (view,), settings, progress, f"frame {number}")
+        timings["exposure"] = time.perf_counter() - start
         report(progress, f"motion ({settings.motion_source})")
-        motion = stereo_motion(scene, window, (view,), settings, progress=progress).views[view]
-    timings = {"motion": time.perf_counter() - start}
+        stereo = stereo_motion(scene, window, (view,), settings, dense=dense, progress=progress)
+        motion = stereo.views[view]
+    elif settings.exposure == "auto":
+        raise InputError("exposure='auto' estimates the motion itself: leave motion unset")
+    timings["motion"] = time.perf_counter() - start - timings.get("exposure", 0.0)
     return deblur_view(
         scene, window, motion, settings, weights=weights, timings=timings, progress=progress
     )
@@ -460,9 +467,9 @@ def deblur_stereo_frame(
     window = read_window(scene, index, needed, settings, estimate=sceneflow is None)
     timings["read"] = time.perf_counter() - start
     start = time.perf_counter()
-    window, exposure = _exposed(window, settings, prefixed(progress, f"{label}: "))
-    if exposure is not None:
-        timings["exposure"] = time.perf_counter() - start
+    progress_of = prefixed(progress, f"{label}: ")
+    window, exposure, dense = _exposed(window, needed, settings, progress_of, label)
+    timings["exposure"] = time.perf_counter() - start
     start = time.perf_counter()
     report(progress, f"{label}: motion ({settings.motion_source})")
     motion = stereo_motion(
@@ -471,11 +478,14 @@ def deblur_stereo_frame(
         needed,
         settings,
         sceneflow=sceneflow,
+        dense=dense,
         progress=prefixed(progress, f"{label}: "),
     )
     timings["motion"] = time.perf_counter() - start
-    share = {k: timings[k] / len(views) for k in timings.keys() & {"exposure"}}
-    share["motion"] = (timings["read"] + timings["motion"]) / len(views)
+    share = {
+        "exposure": timings["exposure"] / len(views),
+        "motion": (timings["read"] + timings["motion"]) / len(views),
+    }
     if window.exposure.exposure == 0:  # sharp frames pass through
         frames = {v: _passed_through(window, motion.views[v], share) for v in views}
         return StereoFrameResult(index, frames, motion, timings, exposure)
@@ -522,13 +532,21 @@ def deblur_stereo_frame(
     return StereoFrameResult(index, frames, motion, timings, exposure)
 
 
-def _exposed(window: FrameWindow, settings: DeblurSettings, progress):
-    """``window`` with its exposure estimated (``settings.exposure='auto'``) and the estimate,
-    or ``window`` as it is and None."""
-    if settings.exposure != "auto":
-        return window, None
-    report(progress, "exposure (estimated from the frames)")
-    found = estimate_exposure(window)
+def _exposed(window: FrameWindow, views, settings: DeblurSettings, progress, label: str):
+    """``window`` with its exposure estimated from ``views`` (``settings.exposure='auto'``), the
+    estimate (None for a given exposure 0) and the views' dense flows it was made from. A given
+    exposure the frames disagree with is kept, with a warning (:func:`.exposure.exposure_doubt`)."""
+    auto = settings.exposure == "auto"
+    if not auto and window.exposure.exposure == 0:
+        return window, None, None
+    report(progress, "exposure (from the frames)" if auto else "exposure check")
+    dense = {view: view_dense_flow(window, view) for view in views}
+    found = estimate_exposure(window, dense)
     seconds, duty = found.exposure.exposure, found.exposure.duty_cycle
     report(progress, f"exposure {seconds:.4g} s (duty cycle {duty:.2f}, {found.windows} windows)")
-    return replace(window, exposure=found.exposure), found
+    if auto:
+        return replace(window, exposure=found.exposure), found, dense
+    doubt = exposure_doubt(window.exposure, found, label)
+    if doubt is not None:
+        warnings.warn(doubt, stacklevel=3)
+    return window, found, dense

@@ -248,21 +248,28 @@ def stereo_motion(
     settings: DeblurSettings,
     *,
     sceneflow: SceneFlow | None = None,
+    dense: dict | None = None,
     progress: ProgressCallback | None = None,
 ) -> StereoMotion:
     """The motion of every view in ``views`` from ``settings.motion_source``, computed once.
 
     One scene-flow estimate (left view, transferred to the right by :func:`to_right_view`)
     and one dense flow per view and frame pair. ``sceneflow``: the left view's scene flow
-    towards the neighbour, given instead of estimated (``motion_source='sceneflow'``).
+    towards the neighbour, given instead of estimated (``motion_source='sceneflow'``);
+    ``dense``: the views' dense flows (:func:`view_dense_flow`) if already computed.
     """
     index, neighbour = window.index, window.neighbour
     estimate = None
+    known = dense or {}
+
+    def dense_of(view):
+        return known[view] if view in known else view_dense_flow(window, view)
+
     if sceneflow is not None:
         _check_sceneflow(sceneflow, window, settings)
         motions = {}
         for view in views:
-            dense = view_dense_flow(window, view) if uses_dense_flow(settings) else None
+            dense = dense_of(view) if uses_dense_flow(settings) else None
             motions[view] = sceneflow_motion(
                 sceneflow, index, neighbour, view, dense=dense, settings=settings
             )
@@ -271,7 +278,7 @@ def stereo_motion(
     elif settings.motion_source == "initial-flow":
         motions = {}
         for view in views:
-            forward, backward = view_dense_flow(window, view)
+            forward, backward = dense_of(view)
             motions[view] = FrameMotion(index, neighbour, view, None, forward, backward)
     else:
         # The views' dense flows do not depend on the estimate: computed meanwhile, in a
@@ -279,7 +286,7 @@ def stereo_motion(
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="dense-flow") as pool:
             dense = {}
             if uses_dense_flow(settings):
-                dense = {view: pool.submit(view_dense_flow, window, view) for view in views}
+                dense = {view: pool.submit(dense_of, view) for view in views}
             estimate = estimate_motion(window, settings, progress=progress)
             motions = {
                 view: sceneflow_motion(

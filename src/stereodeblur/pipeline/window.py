@@ -178,8 +178,8 @@ def frames_needed(
     sides_read |= "neighbours" in observation_kinds(settings)  # observations of the view
     if (motion and uses_dense_flow(settings)) or sides_read:
         needed += [(view, i) for view in views for i in sides]
-    if settings.exposure == "auto":  # both views' blur against their motion
-        needed += [(v, i) for v in VIEWS for i in (index, *sides)]
+    if motion or settings.exposure == "auto":  # the exposure (estimated, or checked)
+        needed += [(view, i) for view in views for i in (index, *sides)]
     return list(dict.fromkeys(needed))
 
 
