@@ -1,5 +1,5 @@
 """Errors for bad input (the CLI prints them as one line and exits with code 2) and for an
-output's storage that refuses writes (one line, exit code 1)."""
+output's storage that refuses writes (one line, exit code 1); warnings about a frame's result."""
 
 from __future__ import annotations
 
@@ -25,6 +25,11 @@ class InputError(ValueError):
     def __init__(self, message: str = "", *, parameter: str | None = None):
         super().__init__(message)
         self.parameter = parameter
+
+
+class FrameWarning(UserWarning):
+    """A frame's result may be poor and the user should know: part of it deblurred with no
+    motion (range guard), or an exposure the frames contradict. The command line prints it."""
 
 
 class StorageError(OSError):

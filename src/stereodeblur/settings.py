@@ -330,7 +330,7 @@ class DeblurSettings:
     exposure : {'given', 'auto'}
         ``'given'`` (default): the exposure time the scene states (``scene.info.exposure``);
         ``'auto'``: estimated per frame from the blurred frames of both views and their
-        optical flow (:func:`stereodeblur.pipeline.exposure.estimate_exposure`); a frame
+        optical flow (:func:`stereodeblur.pipeline.estimate_exposure`); a frame
         found sharp (exposure 0) passes through.
     sceneflow : SceneFlowSettings
         Tuning of the scene-flow estimator (:mod:`stereodeblur.sceneflow.settings`).

@@ -9,7 +9,8 @@ bilinearly as in the paper (``interpolation='bilinear'``). It returns a :class:`
 the matrix), the operator that :func:`stereodeblur.deconv.deblur_irls` inverts;
 :class:`TiledBlur` holds only what its float32 products read.
 :func:`displacement_blur` builds the same kind of operator from 2D flow, and
-:mod:`.trajectories` holds the sampling rules both share.
+:mod:`.trajectories` holds the sampling rules both share. :func:`estimate_duty_cycle` reads
+the exposure (as a share of the frame interval) from a blurred frame and its optical flow.
 
 Names are imported on first use, so importing this package does not load numba.
 """
@@ -24,6 +25,7 @@ _EXPORTS = {
     "SparseBlur": "stereodeblur.blur.operator",
     "TiledBlur": "stereodeblur.blur.operator",
     "dot_test": "stereodeblur.blur.operator",
+    "estimate_duty_cycle": "stereodeblur.blur.exposure",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -153,6 +153,7 @@ def _deblur_clip(args, settings, spec, frames, views, source) -> int:
         )
         return EXIT_FAILED
     print_warnings(w for w in report.warnings if w not in source.warnings)
+    print_warnings(alert for record in report.records for alert in record.alerts)
     failed = report.failed
     if failed:
         first = failed[0]

@@ -59,6 +59,7 @@ class FrameRecord:
     details: str | None = None
     alpha: float | None = None  # the prior weight used (chosen per frame with 'auto')
     exposure: float | None = None  # seconds the frame was deblurred for (estimated with 'auto')
+    alerts: tuple[str, ...] = ()  # the warnings among them for the user (FrameWarning)
     # Set when the output's storage refused a write (StorageError): the run stops at once.
     storage_errno: int | None = None
     storage_path: str | None = None
@@ -66,6 +67,7 @@ class FrameRecord:
     def to_json(self) -> dict:
         data = {"event": "frame", **dataclasses.asdict(self)}
         data["warnings"] = list(self.warnings)
+        del data["alerts"]  # among the warnings
         data["seconds"] = round(self.seconds, 3)
         data["timings"] = {k: round(v, 3) for k, v in self.timings.items()}
         return {k: v for k, v in data.items() if v is not None}

@@ -25,7 +25,7 @@ import traceback
 import warnings
 from collections.abc import Iterator
 
-from ..errors import InputError, StorageError
+from ..errors import FrameWarning, InputError, StorageError
 from ..progress import Progress, ProgressCallback
 from .job import ClipJob, FrameRecord
 
@@ -271,6 +271,7 @@ def process_task(
         messages += [str(w.message) for w in caught or ()]
         return _failed(index, views, start, messages, worker, exc, job.output)
     messages += [str(w.message) for w in caught]
+    alerts = tuple(dict.fromkeys(str(w.message) for w in caught if w.category is FrameWarning))
     seconds = time.perf_counter() - start
     return tuple(
         FrameRecord(
@@ -283,6 +284,7 @@ def process_task(
             worker=worker,
             alpha=None if result.alpha is None else float(result.alpha),
             exposure=result.exposure,
+            alerts=alerts,
         )
         for view, result in results.items()
     )

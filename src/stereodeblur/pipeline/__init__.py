@@ -3,7 +3,8 @@
 The stages, each a function from typed values to a typed value:
 
 1. :func:`read_window`: the :class:`FrameWindow`, every frame the stereo frame's
-   deblurring needs, each read once;
+   deblurring needs, each read once; :func:`estimate_exposure`: the exposure from the
+   frames (``exposure='auto'``), or the check of the given one (:func:`exposure_doubt`);
 2. :func:`stereo_motion`: the :class:`StereoMotion`, computed once for both views;
 3. :func:`view_operator`: a view's blur operator (:class:`ViewOperator`);
 4. :func:`data_terms`: its data weights, anchor, trust and prior weight
@@ -38,6 +39,7 @@ from ..settings import (
     DeblurSettings,
 )
 from .deconvolve import solve
+from .exposure import ExposureEstimate, estimate_exposure, exposure_doubt
 from .frame import (
     FrameResult,
     StereoFrameResult,
@@ -86,6 +88,7 @@ __all__ = [
     "PAPER_ALPHA",
     "DataTerms",
     "DeblurSettings",
+    "ExposureEstimate",
     "FrameMotion",
     "FrameResult",
     "FrameWindow",
@@ -102,6 +105,8 @@ __all__ = [
     "deblur_stereo_frame",
     "deblur_view",
     "dense_flow",
+    "estimate_exposure",
+    "exposure_doubt",
     "frame_motion",
     "frame_trust",
     "gate_trusts",

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..deconv.irls import DeblurResult
 from ..deconv.noise import alpha_from_sigma
-from ..errors import InputError
+from ..errors import FrameWarning, InputError
 from ..evaluation.metrics import border_for
 from ..progress import ProgressCallback, prefixed, report
 from ..settings import CROSS_VIEW_ALPHAS, PAPER_ALPHA, DeblurSettings
@@ -196,6 +196,7 @@ def deblur_view(
             f"frame {window.index} {view}: the motion cannot explain "
             f"{unexplained.mean():.0%} of the pixels (the estimate leaves [0, 1] there); "
             "deblurred with no motion there (range guard)",
+            FrameWarning,
             stacklevel=2,
         )
     timings["deconvolution"] = time.perf_counter() - start
@@ -548,5 +549,5 @@ def _exposed(window: FrameWindow, views, settings: DeblurSettings, progress, lab
         return replace(window, exposure=found.exposure), found, dense
     doubt = exposure_doubt(window.exposure, found, label)
     if doubt is not None:
-        warnings.warn(doubt, stacklevel=3)
+        warnings.warn(doubt, FrameWarning, stacklevel=3)
     return window, found, dense
