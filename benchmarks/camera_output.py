@@ -33,9 +33,9 @@ blurred input it was given; the linear runs in linear values, the camera runs in
 sees, 8-bit sRGB (the truth and the result encoded and rounded alike). Written: ``--output``
 (markdown, default ``benchmarks/results/camera_output_WxH.md``); each run is cached under
 ``--work`` with the tree of ``src/`` it ran on, so a rerun of the same code resumes.
-``--reuse TREE`` also takes the given-exposure runs cached from another ``src/`` tree, once
-the current code has reproduced each variant's first scene to 0.01 dB; their exposure check
-is computed anew (:func:`exposure_check`).
+``--reuse TREE`` also takes the runs cached from another ``src/`` tree, once the current code
+has reproduced each variant's first scene to 0.01 dB; with an exposure given, their exposure
+check is made anew (:func:`exposure_check`).
 """
 
 from __future__ import annotations
@@ -183,6 +183,16 @@ def run_variant(root: Path, variant: str, work: Path) -> dict:
     }
 
 
+def _reused(data: dict, root: Path, variant: str, work: Path) -> dict:
+    """A run of another tree, its exposure check (with an exposure given) made anew."""
+    data = data | {"reused": data.get("reused", data["source"])}
+    if variant.endswith("auto"):
+        return data
+    check = exposure_check(root, variant, work)
+    kept = [w for w in data["warnings"] if "looks too" not in w]
+    return data | check | {"warnings": kept + ([check["doubt"]] if check["doubt"] else [])}
+
+
 def exposure_check(root: Path, variant: str, work: Path) -> dict:
     """The frames' estimate of the exposure and the warning the run of ``variant`` gives,
     computed as :func:`~stereodeblur.pipeline.deblur_frame` does with the defaults."""
@@ -236,39 +246,25 @@ def _variant_scene(root: Path, variant: str, work: Path):
     return open_source(root, exposure=exposure)
 
 
-def reusable(data: dict | None, variant: str, reuse: dict) -> bool:
-    """Whether the cached run ``data`` of a given-exposure ``variant`` comes from a tree in
-    ``reuse`` that the current code has reproduced for this variant."""
-    return (
-        data is not None
-        and not variant.endswith("auto")
-        and reuse.get(data.get("source"), {}).get(variant, False)
-    )
-
-
 def run_scene(root: Path, facts: dict, work: Path, variants, version: str, reuse: dict) -> dict:
     """Every variant of the scene folder ``root`` (``facts``: its blur and noise), cached;
-    ``reuse``: {tree: {variant: reproduced}} of older runs to take (``--reuse``)."""
+    ``reuse``: {tree: {variant: reproduced}} of other trees' runs to take (``--reuse``)."""
     cache = work / "camera_results" / root.name
     cache.mkdir(parents=True, exist_ok=True)
     row = {"scene": root.name} | facts
     for variant in variants:
         path = cache / f"{variant}.json"
         data = json.loads(path.read_text()) if path.is_file() else None
-        old = data is not None and data.get("source") != version
-        if old and not variant.endswith("auto") and data["source"] in reuse:
-            if variant not in reuse[data["source"]]:  # reproduce this variant's first run once
+        tree = None if data is None else data.get("source")
+        if tree != version and tree in reuse:
+            if variant not in reuse[tree]:  # reproduce this variant's first run once
                 fresh = run_variant(root, variant, work)
-                same = abs(fresh["psnr"] - data["psnr"]) <= 0.01
-                reuse[data["source"]][variant] = same
-                print(f"{variant}: {root.name} reproduced: {same}", file=sys.stderr)
+                reuse[tree][variant] = abs(fresh["psnr"] - data["psnr"]) <= 0.01
+                print(f"{variant}: {root.name} reproduced: {reuse[tree][variant]}", file=sys.stderr)
                 data = fresh | {"source": version}
                 path.write_text(json.dumps(data, indent=1))
-            elif reusable(data, variant, reuse):
-                check = exposure_check(root, variant, work)
-                warnings_ = data["warnings"] + ([check["doubt"]] if check["doubt"] else [])
-                data = data | check | {"warnings": warnings_, "reused": data["source"]}
-                data["source"] = version
+            elif reuse[tree][variant]:
+                data = _reused(data, root, variant, work) | {"source": version}
                 path.write_text(json.dumps(data, indent=1))
         if data is None or data.get("source") != version:
             data = run_variant(root, variant, work) | {"source": version}
@@ -361,7 +357,7 @@ def report(scenes, clips, args, seconds: float) -> str:
     if reused:
         lines += [
             "",
-            f"{len(reused)} given-exposure runs were taken from the runs of `src/` tree(s) "
+            f"{len(reused)} runs were taken from the runs of `src/` tree(s) "
             f"{', '.join(sorted(set(reused)))} (`--reuse`), after this code reproduced each "
             "variant's first scene to 0.01 dB; their exposure check is this code's.",
         ]
@@ -390,8 +386,7 @@ def parse(argv=None):
     parser.add_argument(
         "--reuse",
         default="",
-        help="comma-separated src/ trees whose cached given-exposure runs may be taken once "
-        "reproduced",
+        help="comma-separated src/ trees whose cached runs may be taken once reproduced",
     )
     args = parser.parse_args(argv)
     args.size = tuple(int(v) for v in args.size.lower().split("x"))
