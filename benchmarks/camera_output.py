@@ -153,7 +153,7 @@ def run_variant(root: Path, variant: str, work: Path) -> dict:
 
     original = open_scene(root)
     truth = original.read_gt_sharp("left", FRAME)
-    encoded, auto = variant.split("-")[0] in ("camera", "h264"), variant.endswith("auto")
+    encoded, auto = is_encoded(variant), variant.endswith("auto")
     scene = _variant_scene(root, variant, work)
     settings = DeblurSettings(exposure="auto" if auto else "given")
     start = time.perf_counter()
@@ -230,13 +230,18 @@ def sharp_scene(root: Path, work: Path) -> Path:
     return out
 
 
+def is_encoded(variant: str) -> bool:
+    """Whether ``variant``'s frames went through the camera (8-bit sRGB, maybe H.264)."""
+    return variant.split("-")[0] in ("camera", "h264")
+
+
 def _variant_scene(root: Path, variant: str, work: Path):
     from stereodeblur.io.scene import open_scene
     from stereodeblur.io.sources import open_source
 
     if variant == "sharp-auto":
         return open_scene(sharp_scene(root, work))
-    if variant.split("-")[0] in ("camera", "h264"):
+    if is_encoded(variant):
         return open_scene(camera_scene(root, work, variant.startswith("h264")))
     original = open_scene(root)
     factor = {"linear": 1.0, "auto": 1.0, "x0.5": 0.5, "x2": 2.0}[variant]

@@ -21,6 +21,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import ndimage
 
+from ..deconv.noise import estimate_noise_sigma
+
 DEFAULT_CANDIDATES = np.concatenate([[0.0], np.geomspace(0.02, 1.0, 61)])
 """Duty cycles tried: 0 (sharp) and 61 values from 0.02 to 1, 6.7 % apart."""
 
@@ -90,13 +92,6 @@ def _gray(image) -> np.ndarray:
     if a.ndim != 2:
         raise ValueError(f"image must be (H, W) or (H, W, C), got shape {np.shape(image)}")
     return a
-
-
-def noise_sigma(gray: np.ndarray) -> float:
-    """Deviation of white noise in ``gray`` (robust to edges: median of a 3x3 high-pass)."""
-    mask = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
-    r = ndimage.convolve(gray, mask, mode="reflect")[1:-1, 1:-1]
-    return float(1.4826 * np.median(np.abs(r)) / 6.0)
 
 
 def _prefilter_sigma(h: int) -> float:
@@ -243,7 +238,7 @@ def duty_cycle_curves(
         raise ValueError(f"flow must have shape {gray.shape + (2,)}, got {flow.shape}")
     flow = np.nan_to_num(flow)
     cand = _candidates(candidates)
-    sigma_n = noise_sigma(gray) if noise is None else float(noise)
+    sigma_n = estimate_noise_sigma(gray) if noise is None else float(noise)
     stride = window_stride(gray.shape) if stride is None else int(stride)
     height, width = gray.shape
     smooth = np.stack(

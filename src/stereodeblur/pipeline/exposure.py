@@ -9,7 +9,8 @@ warning says when the frames disagree with it (:func:`exposure_doubt`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 
 from ..blur.exposure import (
     WINDOWS,
@@ -18,7 +19,11 @@ from ..blur.exposure import (
     duty_cycle_from_curves,
     window_stride,
 )
+from ..errors import FrameWarning
 from ..geometry.camera import Exposure
+from ..progress import report
+from ..settings import DeblurSettings
+from .motion import view_dense_flow
 from .window import FrameWindow
 
 EXPOSURE_TOLERANCE = 1.4
@@ -63,8 +68,7 @@ def estimate_exposure(window: FrameWindow, dense: dict) -> ExposureEstimate:
     found = duty_cycle_from_curves(curves)
     duty = 0.0 if not found.windows else found.duty_cycle
     rate = window.exposure.frame_rate
-    exposure = Exposure(rate, min(duty / rate, 1 / rate))
-    return ExposureEstimate(exposure, found.confidence, found.windows)
+    return ExposureEstimate(Exposure(rate, duty / rate), found.confidence, found.windows)
 
 
 def exposure_doubt(given: Exposure, found: ExposureEstimate, frame: str) -> str | None:
@@ -80,3 +84,25 @@ def exposure_doubt(given: Exposure, found: ExposureEstimate, frame: str) -> str 
         f"{'long' if seconds > said else 'short'}: the frames say about {said:.2g} s "
         "(--exposure auto uses the frames' estimate)"
     )
+
+
+def exposed_window(window: FrameWindow, views, settings: DeblurSettings, progress, label: str):
+    """``window`` with its exposure estimated from ``views`` (``settings.exposure='auto'``), the
+    estimate (None for a given exposure 0) and the views' dense flows it was made from
+    (:func:`~.motion.view_dense_flow`, for the motion to reuse). A given exposure the frames
+    disagree with is kept, with a :class:`~stereodeblur.errors.FrameWarning`
+    (:func:`exposure_doubt`; ``label`` names the frame, e.g. 'frame 12')."""
+    auto = settings.exposure == "auto"
+    if not auto and window.exposure.exposure == 0:
+        return window, None, None
+    report(progress, "exposure (from the frames)" if auto else "exposure check")
+    dense = {view: view_dense_flow(window, view) for view in views}
+    found = estimate_exposure(window, dense)
+    seconds, duty = found.exposure.exposure, found.exposure.duty_cycle
+    report(progress, f"exposure {seconds:.4g} s (duty cycle {duty:.2f}, {found.windows} windows)")
+    if auto:
+        return replace(window, exposure=found.exposure), found, dense
+    doubt = exposure_doubt(window.exposure, found, label)
+    if doubt is not None:
+        warnings.warn(doubt, FrameWarning, stacklevel=3)
+    return window, found, dense

@@ -37,8 +37,8 @@ from .alpha import (
     undominated,
 )
 from .deconvolve import guarded_solve
-from .exposure import ExposureEstimate, estimate_exposure, exposure_doubt
-from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion, view_dense_flow
+from .exposure import ExposureEstimate, exposed_window
+from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
 from .observations import (
     NEIGHBOURS,
     NamedObservation,
@@ -418,6 +418,8 @@ def deblur_frame(
             scene, index, views=(view,), settings=settings, progress=progress
         )
         return stereo.frames[view]
+    if motion is not None and settings.exposure == "auto":
+        raise InputError("exposure='auto' estimates the motion itself: leave motion unset")
     number = scene.numbering.number(index)
     progress = prefixed(progress, f"frame {number} {view}: ")
     start = time.perf_counter()
@@ -425,13 +427,11 @@ def deblur_frame(
     window = read_window(scene, index, (view,), settings, motion=motion is None)
     timings = {}
     if motion is None:
-        window, _, dense = _exposed(window, (view,), settings, progress, f"frame {number}")
+        window, _, dense = exposed_window(window, (view,), settings, progress, f"frame {number}")
         timings["exposure"] = time.perf_counter() - start
         report(progress, f"motion ({settings.motion_source})")
         stereo = stereo_motion(scene, window, (view,), settings, dense=dense, progress=progress)
         motion = stereo.views[view]
-    elif settings.exposure == "auto":
-        raise InputError("exposure='auto' estimates the motion itself: leave motion unset")
     timings["motion"] = time.perf_counter() - start - timings.get("exposure", 0.0)
     return deblur_view(
         scene, window, motion, settings, weights=weights, timings=timings, progress=progress
@@ -469,7 +469,7 @@ def deblur_stereo_frame(
     timings["read"] = time.perf_counter() - start
     start = time.perf_counter()
     progress_of = prefixed(progress, f"{label}: ")
-    window, exposure, dense = _exposed(window, needed, settings, progress_of, label)
+    window, exposure, dense = exposed_window(window, needed, settings, progress_of, label)
     timings["exposure"] = time.perf_counter() - start
     start = time.perf_counter()
     report(progress, f"{label}: motion ({settings.motion_source})")
@@ -531,23 +531,3 @@ def deblur_stereo_frame(
         )
         del seen, other, observations  # freed before the next view's are built (peak memory)
     return StereoFrameResult(index, frames, motion, timings, exposure)
-
-
-def _exposed(window: FrameWindow, views, settings: DeblurSettings, progress, label: str):
-    """``window`` with its exposure estimated from ``views`` (``settings.exposure='auto'``), the
-    estimate (None for a given exposure 0) and the views' dense flows it was made from. A given
-    exposure the frames disagree with is kept, with a warning (:func:`.exposure.exposure_doubt`)."""
-    auto = settings.exposure == "auto"
-    if not auto and window.exposure.exposure == 0:
-        return window, None, None
-    report(progress, "exposure (from the frames)" if auto else "exposure check")
-    dense = {view: view_dense_flow(window, view) for view in views}
-    found = estimate_exposure(window, dense)
-    seconds, duty = found.exposure.exposure, found.exposure.duty_cycle
-    report(progress, f"exposure {seconds:.4g} s (duty cycle {duty:.2f}, {found.windows} windows)")
-    if auto:
-        return replace(window, exposure=found.exposure), found, dense
-    doubt = exposure_doubt(window.exposure, found, label)
-    if doubt is not None:
-        warnings.warn(doubt, FrameWarning, stacklevel=3)
-    return window, found, dense

@@ -178,7 +178,7 @@ def frames_needed(
     sides_read |= "neighbours" in observation_kinds(settings)  # observations of the view
     if (motion and uses_dense_flow(settings)) or sides_read:
         needed += [(view, i) for view in views for i in sides]
-    if motion or settings.exposure == "auto":  # the exposure (estimated, or checked)
+    if motion:  # the exposure (estimated, or checked)
         needed += [(view, i) for view in views for i in (index, *sides)]
     return list(dict.fromkeys(needed))
 
