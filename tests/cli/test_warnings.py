@@ -39,9 +39,8 @@ def test_frames_left_out_for_lack_of_ground_truth_are_reported(tmp_path, capsys)
     assert len(warnings) == len(set(warnings))
 
 
-def test_an_exposure_the_frames_contradict_warns_once_per_frame(tmp_path, capsys):
-    """A plane exposed for 0.8 of the frame interval, told 0.3 of it: one line names the frame,
-    the exposure given and the frames' estimate; told the truth, no warning."""
+def _upward_scene(root):
+    """A plane exposed for 0.8 of the frame interval (0.04 s)."""
     from dataclasses import replace
 
     from stereodeblur.geometry.camera import Exposure
@@ -50,17 +49,35 @@ def test_an_exposure_the_frames_contradict_warns_once_per_frame(tmp_path, capsys
 
     setup = planar_setup("upward", size=(160, 120), num_frames=3)
     setup = replace(setup, exposure=Exposure(FRAME_RATE, 0.8 / FRAME_RATE))
-    scene = write_rendered_scene(render_scene(setup, num_samples=24), tmp_path / "upward")
-    fast = ["--views", "left", "--frames", "1", "--samples", "4", "--irls", "1", "--cg", "1"]
-    fast += ["--workers", "1", "-q", "--overwrite"]
+    return write_rendered_scene(render_scene(setup, num_samples=24), root)
+
+
+FAST_LEFT = ["--views", "left", "--frames", "1", "--samples", "4", "--irls", "1", "--cg", "1"]
+
+
+def test_an_exposure_the_frames_contradict_warns_once_per_frame(tmp_path, capsys):
+    """Told 0.3 of the frame interval: one line names the frame, the exposure given and the
+    frames' estimate; told the truth, no warning."""
+    scene = _upward_scene(tmp_path / "upward")
+    fast = [*FAST_LEFT, "--workers", "1", "-q", "--overwrite"]
     out = tmp_path / "out"
     shown = {}
-    for told in (0.3, 0.8):
-        exposure = str(told / FRAME_RATE)
-        assert main(["deblur", str(scene), "-o", str(out), "--exposure", exposure, *fast]) == 0
+    for told in ("0.015", "0.04"):
+        assert main(["deblur", str(scene), "-o", str(out), "--exposure", told, *fast]) == 0
         err = capsys.readouterr().err.splitlines()
         shown[told] = [line for line in err if "looks too" in line]
-    assert shown[0.8] == []
-    (line,) = shown[0.3]
+    assert shown["0.04"] == []
+    (line,) = shown["0.015"]
     assert line.startswith("stereodeblur: warning: frame 1: the exposure given, 0.015 s, looks")
-    assert "too short: the frames say about 0.04" in line, line  # 0.8 x 0.05 s
+    assert "too short: the frames say about 0.04" in line, line
+
+
+def test_a_frame_deblurred_with_a_saved_sceneflow_warns_the_same_way(tmp_path, capsys):
+    scene = _upward_scene(tmp_path / "upward")
+    assert main(["sceneflow", str(scene), "--frames", "1", "-o", str(tmp_path / "sf"), "-q"]) == 0
+    saved = tmp_path / "sf" / "sceneflow" / "000001.npz"
+    capsys.readouterr()
+    argv = ["deblur", str(scene), "-o", str(tmp_path / "out"), "--sceneflow", str(saved)]
+    assert main([*argv, "--exposure", "0.015", *FAST_LEFT, "-q"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("stereodeblur: warning: frame 1: the exposure"), err

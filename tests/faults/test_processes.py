@@ -103,3 +103,25 @@ def test_resuming_a_finished_output_with_workers_runs_nothing(tiny_scene, refere
     assert "wrote 0 frame(s)" in result.stdout and "12 already done" in result.stdout
     assert result.stderr == ""
     same_frames(out, reference)
+
+
+def test_an_interrupt_inside_exec_still_exits_130(tmp_path):
+    """Ctrl-C landing in an ``exec`` of a string (a dataclass being created as a module is
+    imported mid-run) exits 130 like any other; CPython alone ends such a ``python -m`` process
+    by SIGINT."""
+    (tmp_path / "interrupted_cli.py").write_text(
+        "import argparse, importlib\n"
+        "cli = importlib.import_module('stereodeblur.cli.main')\n"
+        "def interrupted(args):\n"
+        "    exec('raise KeyboardInterrupt')\n"
+        "class Parser:\n"
+        "    def parse_args(self, argv):\n"
+        "        return argparse.Namespace(func=interrupted)\n"
+        "cli.build_parser = Parser\n"
+        "cli.run()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "interrupted_cli"], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "stereodeblur: interrupted\n"

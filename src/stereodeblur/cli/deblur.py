@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from dataclasses import replace
 
-from ..errors import InputError, StorageError
+from ..errors import FrameWarning, InputError, StorageError
 from ..settings import DASK_CONNECT_TIMEOUT
 from .base import EXIT_FAILED, EXIT_USAGE, add_quiet, integer
 from .printer import (
@@ -202,9 +203,15 @@ def _deblur_with_saved_sceneflow(args, settings, spec, source, frames, views) ->
         protect=[source.root],
         numbering=source.numbering,
     )
-    stereo = deblur_stereo_frame(
-        source, index, views=views, settings=settings, sceneflow=sceneflow, progress=progress
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", FrameWarning)
+        stereo = deblur_stereo_frame(
+            source, index, views=views, settings=settings, sceneflow=sceneflow, progress=progress
+        )
+    for w in caught:  # the libraries' as before
+        if w.category is not FrameWarning:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    print_warnings(str(w.message) for w in caught if w.category is FrameWarning)
     for view in views:
         writer.write_frame(view, index, stereo.frames[view].image)
     mark_output(writer.root, "deblur")

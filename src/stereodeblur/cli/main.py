@@ -3,6 +3,7 @@ bad input, 1 for an output's storage that refuses writes (a full disk)."""
 
 from __future__ import annotations
 
+import atexit
 import os
 import sys
 
@@ -71,3 +72,19 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # stdout closed early (e.g. piped into head): stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+
+
+def run() -> None:
+    """``python -m stereodeblur.cli``: :func:`main`'s exit code as the process's exit status.
+
+    An interrupted run exits with 130 once the exit handlers have run. Under ``-m``, CPython
+    would end the process by SIGINT instead whenever a KeyboardInterrupt had left an ``exec``
+    of a string (dataclass and namedtuple creation, numba's compiler), though caught later.
+    """
+    code = main()
+    if code == EXIT_INTERRUPTED:
+        atexit._run_exitfuncs()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)

@@ -193,7 +193,7 @@ def deblur_view(
         )
     if unexplained is not None:
         warnings.warn(
-            f"frame {window.index} {view}: the motion cannot explain "
+            f"frame {scene.numbering.number(window.index)} {view}: the motion cannot explain "
             f"{unexplained.mean():.0%} of the pixels (the estimate leaves [0, 1] there); "
             "deblurred with no motion there (range guard)",
             FrameWarning,
