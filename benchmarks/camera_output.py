@@ -183,19 +183,26 @@ def run_variant(root: Path, variant: str, work: Path) -> dict:
     }
 
 
-def _reused(data: dict, root: Path, variant: str, work: Path) -> dict:
-    """A run of another tree, its exposure check (with an exposure given) made anew."""
+def _reused(data: dict, root: Path, variant: str, work: Path) -> dict | None:
+    """A run of another tree, its exposure check (with an exposure given) made anew; None for a
+    run with the exposure estimated where this code deblurs for another exposure."""
     data = data | {"reused": data.get("reused", data["source"])}
-    if variant.endswith("auto"):
-        return data
     check = exposure_check(root, variant, work)
+    if variant.endswith("auto"):
+        return data if check["used"] == data["exposure"] else None
     kept = [w for w in data["warnings"] if "looks too" not in w]
-    return data | check | {"warnings": kept + ([check["doubt"]] if check["doubt"] else [])}
+    doubt = check["doubt"]
+    return data | {
+        "estimate": check["estimate"],
+        "doubt": doubt,
+        "warnings": kept + ([doubt] if doubt else []),
+    }
 
 
 def exposure_check(root: Path, variant: str, work: Path) -> dict:
-    """The frames' estimate of the exposure and the warning the run of ``variant`` gives,
-    computed as :func:`~stereodeblur.pipeline.deblur_frame` does with the defaults."""
+    """The frames' estimate of the exposure, the exposure ``--exposure auto`` deblurs for and
+    the warning the run of ``variant`` gives, computed as
+    :func:`~stereodeblur.pipeline.deblur_frame` does with the defaults."""
     from stereodeblur.pipeline.exposure import estimate_exposure, exposure_doubt
     from stereodeblur.pipeline.motion import view_dense_flow
     from stereodeblur.pipeline.window import read_window, views_read
@@ -207,7 +214,8 @@ def exposure_check(root: Path, variant: str, work: Path) -> dict:
     window = read_window(scene, FRAME, views, settings)
     found = estimate_exposure(window, {v: view_dense_flow(window, v) for v in views})
     doubt = exposure_doubt(window.exposure, found, f"frame {FRAME}")
-    return {"estimate": found.exposure.exposure, "doubt": doubt}
+    used = 0.0 if found.sharp else found.exposure.exposure
+    return {"estimate": found.exposure.exposure, "used": used, "doubt": doubt}
 
 
 def sharp_scene(root: Path, work: Path) -> Path:
@@ -270,8 +278,10 @@ def run_scene(root: Path, facts: dict, work: Path, variants, version: str, reuse
                 data = fresh | {"source": version}
                 path.write_text(json.dumps(data, indent=1))
             elif reuse[tree][variant]:
-                data = _reused(data, root, variant, work) | {"source": version}
-                path.write_text(json.dumps(data, indent=1))
+                data = _reused(data, root, variant, work)
+                if data is not None:
+                    data |= {"source": version}
+                    path.write_text(json.dumps(data, indent=1))
         if data is None or data.get("source") != version:
             data = run_variant(root, variant, work) | {"source": version}
             path.write_text(json.dumps(data, indent=1))

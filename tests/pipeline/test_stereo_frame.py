@@ -227,6 +227,32 @@ def test_a_frame_of_exposure_zero_passes_through(scene):
 
 def test_the_exposure_estimated_per_stereo_frame_is_the_one_deblurred_for(scene):
     stereo = deblur_stereo_frame(scene, 1, settings=replace(ESTIMATED, exposure="auto"))
-    found = stereo.exposure.exposure
-    assert found.frame_rate == scene.info.exposure.frame_rate and "exposure" in stereo.timings
-    assert {f.exposure for f in stereo.frames.values()} == {found.exposure}
+    found = stereo.exposure
+    assert found.exposure.frame_rate == scene.info.exposure.frame_rate
+    assert "exposure" in stereo.timings
+    used = 0.0 if found.sharp else found.exposure.exposure  # the squares move about 2 px
+    assert {f.exposure for f in stereo.frames.values()} == {used}
+
+
+@pytest.mark.parametrize(("name", "duty"), [("upward", 0.0), ("long_exposure_roll", 0.8)])
+def test_frames_whose_blur_reads_shorter_than_two_pixels_pass_through(tmp_path, name, duty):
+    """A plane moving about 3 px per frame rendered sharp reads as 1.6 px of blur and passes
+    through; the rolling camera exposed for 0.8 of the frame interval (about 10 px of blur)
+    is deblurred for the estimate."""
+    from stereodeblur.geometry.camera import Exposure
+    from stereodeblur.synth.planar import FRAME_RATE, planar_setup
+    from stereodeblur.synth.render import render_scene
+
+    setup = planar_setup(name, size=(160, 120), num_frames=3)
+    setup = replace(setup, exposure=Exposure(FRAME_RATE, duty / FRAME_RATE))
+    root = write_rendered_scene(render_scene(setup, num_samples=24), tmp_path / name)
+    settings = replace(TRUE, exposure="auto")
+    stereo = deblur_stereo_frame(open_scene(root), 1, views=("left",), settings=settings)
+    found, frame = stereo.exposure, stereo.frames["left"]
+    unchanged = np.array_equal(frame.image, np.clip(frame.blurred, 0, 1))
+    if duty == 0:
+        assert found.sharp and found.exposure.exposure > 0, found  # read as a short blur
+        assert frame.exposure == 0.0 and unchanged
+    else:
+        assert not found.sharp and found.blur > 5, found
+        assert frame.exposure == found.exposure.exposure > 0 and not unchanged

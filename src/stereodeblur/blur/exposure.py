@@ -192,6 +192,21 @@ def window_stride(shape, windows: int = WINDOWS) -> int:
     return max(16, round(float(np.sqrt(height * width / windows))))
 
 
+def window_motion(flow, stride: int, min_flow: float = 2.0) -> tuple:
+    """Rows, columns and motion ``(u, v)`` of the window centres, ``stride`` pixels apart, that
+    move at least ``min_flow`` pixels per frame (``flow`` median-filtered over 5 x 5 pixels)."""
+    flow = np.nan_to_num(np.asarray(flow, dtype=np.float64))
+    smooth = np.stack(
+        [ndimage.median_filter(flow[..., k], size=5, mode="nearest") for k in range(2)], -1
+    )
+    height, width = flow.shape[:2]
+    ys, xs = np.mgrid[stride // 2 : height : stride, stride // 2 : width : stride]
+    ys, xs = ys.ravel(), xs.ravel()
+    uc = smooth[ys, xs]
+    keep = np.hypot(uc[:, 0], uc[:, 1]) >= min_flow
+    return ys[keep], xs[keep], uc[keep]
+
+
 def duty_cycle_curves(
     blurred,
     flow,
@@ -241,15 +256,8 @@ def duty_cycle_curves(
     sigma_n = estimate_noise_sigma(gray) if noise is None else float(noise)
     stride = window_stride(gray.shape) if stride is None else int(stride)
     height, width = gray.shape
-    smooth = np.stack(
-        [ndimage.median_filter(flow[..., k], size=5, mode="nearest") for k in range(2)], -1
-    )
-    ys, xs = np.mgrid[stride // 2 : height : stride, stride // 2 : width : stride]
-    ys, xs = ys.ravel(), xs.ravel()
-    uc = smooth[ys, xs]
+    ys, xs, uc = window_motion(flow, stride, min_flow)
     speed = np.hypot(uc[:, 0], uc[:, 1])
-    keep = speed >= min_flow
-    ys, xs, uc, speed = ys[keep], xs[keep], uc[keep], speed[keep]
     level = np.clip(np.ceil(np.log2(np.maximum(speed / max_blur_samples, 1.0))), 0, 3).astype(int)
     curves = []
     for lev in np.unique(level):

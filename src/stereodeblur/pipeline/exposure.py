@@ -3,7 +3,8 @@
 Each view's frame is compared with its optical flow (DIS) to the frames before and after: the
 blur's extent along the motion, as a share of the motion over one frame interval, is the duty
 cycle (:mod:`stereodeblur.blur.exposure`). The views' windows vote in one sum. With
-``DeblurSettings.exposure='auto'`` the estimate is deblurred for; with an exposure given, a
+``DeblurSettings.exposure='auto'`` the estimate is deblurred for, unless the blur it gives is
+under :data:`SHARP_BLUR` pixels (the frames then pass through); with an exposure given, a
 warning says when the frames disagree with it (:func:`exposure_doubt`).
 """
 
@@ -12,11 +13,14 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from ..blur.exposure import (
     WINDOWS,
     central_flow,
     duty_cycle_curves,
     duty_cycle_from_curves,
+    window_motion,
     window_stride,
 )
 from ..errors import FrameWarning
@@ -31,6 +35,9 @@ EXPOSURE_TOLERANCE = 1.4
 warning; the given one is used). Why: docs/defaults.md#exposure-check"""
 DOUBT_WINDOWS = 20
 """Fewer windows (small or still frames) say too little to doubt a given exposure."""
+SHARP_BLUR = 2.0
+"""An estimate whose blur is shorter (pixels, in the median moving window) reads the frames as
+sharp: ``exposure='auto'`` passes them through. Why: docs/defaults.md#sharp-frames"""
 
 
 @dataclass(frozen=True)
@@ -47,11 +54,19 @@ class ExposureEstimate:
         (:class:`~stereodeblur.blur.exposure.DutyEstimate`); 0 without windows.
     windows : int
         Windows (both views) that voted.
+    blur : float
+        The blur this exposure gives the median moving window (pixels; 0 without windows).
     """
 
     exposure: Exposure
     confidence: float
     windows: int
+    blur: float
+
+    @property
+    def sharp(self) -> bool:
+        """Whether the frames read as sharp (blur under :data:`SHARP_BLUR` pixels)."""
+        return self.blur < SHARP_BLUR
 
 
 def estimate_exposure(window: FrameWindow, dense: dict) -> ExposureEstimate:
@@ -59,16 +74,19 @@ def estimate_exposure(window: FrameWindow, dense: dict) -> ExposureEstimate:
     their dense flows (``{view: (to the neighbour, to the other side or None)}``,
     :func:`~.motion.view_dense_flow`; :func:`~stereodeblur.blur.exposure.duty_cycle_curves`)."""
     stride = window_stride(window.shape, WINDOWS // len(dense))
-    curves = []
+    curves, speeds = [], []
     for view, (forward, backward) in dense.items():
         flows = {window.neighbour - window.index: forward}
         if backward is not None:
             flows[window.other - window.index] = backward
-        curves.extend(duty_cycle_curves(window.blurred(view), central_flow(flows), stride=stride))
+        flow = central_flow(flows)
+        curves.extend(duty_cycle_curves(window.blurred(view), flow, stride=stride))
+        speeds.extend(np.hypot(*window_motion(flow, stride)[2].T))
     found = duty_cycle_from_curves(curves)
     duty = 0.0 if not found.windows else found.duty_cycle
     rate = window.exposure.frame_rate
-    return ExposureEstimate(Exposure(rate, duty / rate), found.confidence, found.windows)
+    blur = duty * float(np.median(speeds)) if speeds else 0.0
+    return ExposureEstimate(Exposure(rate, duty / rate), found.confidence, found.windows, blur)
 
 
 def exposure_doubt(given: Exposure, found: ExposureEstimate, frame: str) -> str | None:
@@ -99,9 +117,14 @@ def exposed_window(window: FrameWindow, views, settings: DeblurSettings, progres
     dense = {view: view_dense_flow(window, view) for view in views}
     found = estimate_exposure(window, dense)
     seconds, duty = found.exposure.exposure, found.exposure.duty_cycle
-    report(progress, f"exposure {seconds:.4g} s (duty cycle {duty:.2f}, {found.windows} windows)")
+    said = f"exposure {seconds:.4g} s (duty cycle {duty:.2f}, blur {found.blur:.1f} px, "
+    said += f"{found.windows} windows)"
+    if auto and found.sharp and seconds > 0:
+        said += f": read as sharp frames (blur under {SHARP_BLUR:g} px), passed through"
+    report(progress, said)
     if auto:
-        return replace(window, exposure=found.exposure), found, dense
+        used = Exposure(found.exposure.frame_rate, 0.0) if found.sharp else found.exposure
+        return replace(window, exposure=used), found, dense
     doubt = exposure_doubt(window.exposure, found, label)
     if doubt is not None:
         warnings.warn(doubt, FrameWarning, stacklevel=3)

@@ -19,7 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
-from ..progress import ProgressCallback, prefixed
+from ..progress import ProgressCallback
 from ..sceneflow.model import SceneFlow
 from .window import FrameWindow, check_gt, read_window, relabels, uses_dense_flow
 
@@ -236,7 +236,7 @@ def estimate_motion(
         settings=settings.estimator,
         seed=settings.seed,
         exposure=window.exposure,
-        progress=prefixed(progress, "scene flow: "),
+        progress=progress,
         other_side=other,
     )
 
