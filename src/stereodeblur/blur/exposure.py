@@ -218,6 +218,7 @@ def duty_cycle_curves(
     lines: int = 12,
     min_flow: float = 2.0,
     max_blur_samples: float = 12.0,
+    motion: tuple | None = None,
 ) -> np.ndarray:
     """Negative log-likelihood of each candidate duty cycle in each window of ``blurred``.
 
@@ -241,6 +242,8 @@ def duty_cycle_curves(
     max_blur_samples : float
         The profiles' step (1, 2, 4 or 8 pixels, the frame pre-filtered to match) is chosen
         so that the longest candidate blur spans at most this many samples.
+    motion : tuple, optional
+        :func:`window_motion` of ``flow``, ``stride`` and ``min_flow``, if already computed.
 
     Returns
     -------
@@ -256,7 +259,7 @@ def duty_cycle_curves(
     sigma_n = estimate_noise_sigma(gray) if noise is None else float(noise)
     stride = window_stride(gray.shape) if stride is None else int(stride)
     height, width = gray.shape
-    ys, xs, uc = window_motion(flow, stride, min_flow)
+    ys, xs, uc = window_motion(flow, stride, min_flow) if motion is None else motion
     speed = np.hypot(uc[:, 0], uc[:, 1])
     level = np.clip(np.ceil(np.log2(np.maximum(speed / max_blur_samples, 1.0))), 0, 3).astype(int)
     curves = []

@@ -80,8 +80,9 @@ def estimate_exposure(window: FrameWindow, dense: dict) -> ExposureEstimate:
         if backward is not None:
             flows[window.other - window.index] = backward
         flow = central_flow(flows)
-        curves.extend(duty_cycle_curves(window.blurred(view), flow, stride=stride))
-        speeds.extend(np.hypot(*window_motion(flow, stride)[2].T))
+        motion = window_motion(flow, stride)
+        curves.extend(duty_cycle_curves(window.blurred(view), flow, stride=stride, motion=motion))
+        speeds.extend(np.hypot(*motion[2].T))
     found = duty_cycle_from_curves(curves)
     duty = 0.0 if not found.windows else found.duty_cycle
     rate = window.exposure.frame_rate
