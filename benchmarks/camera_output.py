@@ -58,6 +58,8 @@ FULL_WELL = 2000.0
 """Electrons at white: the shot noise of a small sensor at a raised gain (low light)."""
 READ_NOISE = 3.0
 """Read noise in electrons."""
+BELOW = -0.005
+"""dB: a gain that rounds to 0.00 (a frame passed through) is not below the input."""
 BITS_PER_PIXEL = 0.3
 """H.264 bits per pixel and frame: 1.8 Mbit/s for 640x480 at 20 frames per second."""
 VARIANTS = (
@@ -316,7 +318,7 @@ def table(rows, variants) -> list[str]:
             f"| {v} | {statistics.mean(row[v]['psnr'] for row in rows):.2f} | "
             f"{statistics.mean(row[v]['blurred'] for row in rows):.2f} | "
             f"{statistics.mean(gains):+.2f} | {gains[worst]:+.2f} ({rows[worst]['scene']}) | "
-            f"{sum(g < 0 for g in gains)} / {len(rows)} |"
+            f"{sum(g < BELOW for g in gains)} / {len(rows)} |"
         )
     warned = {v: sum(bool(row[v]["warnings"]) for row in rows) for v in variants}
     doubted = {
