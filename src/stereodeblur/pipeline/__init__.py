@@ -40,14 +40,7 @@ from ..settings import (
 )
 from .deconvolve import solve
 from .exposure import ExposureEstimate, estimate_exposure, exposure_doubt
-from .frame import (
-    FrameResult,
-    StereoFrameResult,
-    build_view_operator,
-    deblur_frame,
-    deblur_stereo_frame,
-    deblur_view,
-)
+from .frame import build_view_operator, deblur_frame, deblur_stereo_frame, deblur_view
 from .motion import (
     FrameMotion,
     StereoMotion,
@@ -69,6 +62,7 @@ from .operator import (
     view_operator,
     visibility,
 )
+from .results import FrameResult, StereoFrameResult
 from .weights import DataTerms, data_terms, frame_trust, gate_trusts, resolve_alpha
 from .window import (
     FrameWindow,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import copy
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -37,8 +37,8 @@ from .alpha import (
     undominated,
 )
 from .deconvolve import guarded_solve
-from .exposure import ExposureEstimate, exposed_window
-from .motion import FrameMotion, StereoMotion, check_motion, stereo_motion
+from .exposure import exposed_window
+from .motion import FrameMotion, check_motion, stereo_motion
 from .observations import (
     NEIGHBOURS,
     NamedObservation,
@@ -47,6 +47,7 @@ from .observations import (
     weighed_neighbours,
 )
 from .operator import view_operator
+from .results import FrameResult, StereoFrameResult
 from .weights import DataTerms, data_terms, gate_trusts
 from .window import (
     VIEWS,
@@ -63,64 +64,6 @@ from .window import (
 if TYPE_CHECKING:
     from ..io.protocol import StereoScene
     from ..sceneflow.model import SceneFlow
-
-
-@dataclass(frozen=True)
-class FrameResult:
-    """A deblurred frame with what produced it.
-
-    ``alpha`` is the prior weight used; ``weight_steps`` the boundary-weight updates
-    (:class:`~stereodeblur.deconv.weights.WeightsStep`: weights and the residual norm
-    they came from, per IRLS iteration), empty with fixed weights; ``trust`` the trust in
-    the blur model per pixel (``boundary_weights='adaptive'`` or ``'gated'``, else None).
-    ``timings``: seconds of ``'motion'`` (reading the frames included; from
-    :func:`deblur_stereo_frame` an equal share of the stereo frame's, and so of
-    ``'exposure'`` with ``settings.exposure='auto'``), ``'operator'`` and
-    ``'deconvolution'`` (data weights, trust and alpha included; the further observations'
-    operators in ``'observations'``). ``observations``: the names of the further
-    observations the estimate used (``settings.observations``), e.g. ``('other-view',
-    'next', 'previous')``. ``unexplained``: the pixels the range guard deblurred with no
-    motion (``settings.range_guard``; bool ``(H, W)``), None where it found none.
-    ``alpha_scale``: the factor of ``alpha`` per pixel (``settings.local_alpha``; float32
-    ``(H, W)``), None where one alpha holds for the whole view. ``exposure``: the exposure
-    time (seconds) the frame was deblurred for, given or estimated (``settings.exposure``);
-    at 0 the blurred frame passes through.
-    """
-
-    index: int
-    view: str
-    blurred: np.ndarray
-    result: DeblurResult
-    motion: FrameMotion
-    timings: dict = field(default_factory=dict)
-    alpha: float | None = None
-    weight_steps: tuple = ()
-    trust: np.ndarray | None = None
-    observations: tuple = ()
-    unexplained: np.ndarray | None = None
-    alpha_scale: np.ndarray | None = None
-    exposure: float | None = None
-
-    @property
-    def image(self) -> np.ndarray:
-        return np.clip(self.result.image, 0.0, 1.0)
-
-
-@dataclass(frozen=True)
-class StereoFrameResult:
-    """The deblurred views of one stereo frame, from one window and one motion.
-
-    ``frames`` (dict) maps each requested view to its :class:`FrameResult`; ``timings`` holds
-    the seconds of the shared stages, ``'read'``, ``'exposure'`` (``settings.exposure='auto'``)
-    and ``'motion'``. ``exposure``: the frames' estimate of the exposure (deblurred for with
-    ``settings.exposure='auto'``, else the check of the given one; None for a given 0).
-    """
-
-    index: int
-    frames: dict
-    motion: StereoMotion
-    timings: dict = field(default_factory=dict)
-    exposure: ExposureEstimate | None = None
 
 
 def build_view_operator(window: FrameWindow, motion: FrameMotion, settings: DeblurSettings):

@@ -269,9 +269,9 @@ def stereo_motion(
         _check_sceneflow(sceneflow, window, settings)
         motions = {}
         for view in views:
-            dense = dense_of(view) if uses_dense_flow(settings) else None
+            flows = dense_of(view) if uses_dense_flow(settings) else None
             motions[view] = sceneflow_motion(
-                sceneflow, index, neighbour, view, dense=dense, settings=settings
+                sceneflow, index, neighbour, view, dense=flows, settings=settings
             )
     elif settings.motion_source == "gt":
         motions = gt_motions(scene, window, views, settings)
@@ -284,9 +284,9 @@ def stereo_motion(
         # The views' dense flows do not depend on the estimate: computed meanwhile, in a
         # thread of their own (OpenCV releases the GIL; the estimate mostly runs in one).
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="dense-flow") as pool:
-            dense = {}
+            pending = {}
             if uses_dense_flow(settings):
-                dense = {view: pool.submit(dense_of, view) for view in views}
+                pending = {view: pool.submit(dense_of, view) for view in views}
             estimate = estimate_motion(window, settings, progress=progress)
             motions = {
                 view: sceneflow_motion(
@@ -294,7 +294,7 @@ def stereo_motion(
                     index,
                     neighbour,
                     view,
-                    dense=dense[view].result() if view in dense else None,
+                    dense=pending[view].result() if view in pending else None,
                     settings=settings,
                 )
                 for view in views
